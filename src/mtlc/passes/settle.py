@@ -21,6 +21,7 @@ from collections.abc import Collection
 
 import numpy as np
 
+from mtlc.body.ik.clearance import penetrations
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, Frames, MotionIR
 from mtlc.passes.context import PassContext
@@ -96,26 +97,73 @@ def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray
 
 
 def settle_walk(
-    skel: Skeleton, ir: MotionIR, frames: Frames, start: float, end: float, tracks: list[str]
-) -> None:
-    """Lead the trunk, and the arms of ``tracks``, to the rest pose from the walk's start."""
+    skel: Skeleton, ir: MotionIR, frames: Frames, start: float, end: float, tracks: list[str],
+    trunk: bool = True,
+) -> None:  # fmt: skip
+    """Lead the trunk (``trunk``), and the arms of ``tracks``, to the rest pose from the walk's
+    start."""
     t = frames.time
     i = int(np.searchsorted(t, start - EPS))
     if i >= len(t) or end - start <= EPS:
         return
     rest = np.asarray(skel.q_comfort, dtype=float)
-    # the trunk until a segment moves it or an arm (a reach solved on the trunk as it was:
-    # kept through an arm's place, the access panel's hands ended 84-116 mm off the bench)
     arms = [n for hand in ARM_HAND.values() for n in _names(skel, _arm_dofs(skel, hand))]
-    groups = [([skel.dof_index(n) for n in TRUNK], [*TRUNK, *arms])]
-    groups += [(dofs, _names(skel, dofs)) for dofs in
-               (_arm_dofs(skel, ARM_HAND[track]) for track in tracks)]  # fmt: skip
-    for dofs, until in groups:
+    spine = [skel.dof_index(n) for n in TRUNK]
+    offset = rest[spine] - frames.q[i, spine]
+    if trunk and float(np.abs(offset).max()) > NEAR:
+        _settle_trunk(skel, ir, frames, (start, end), spine, offset, [*TRUNK, *arms])
+    for track in tracks:  # a free arm hangs until its next segment, let go of over it
+        dofs = _arm_dofs(skel, ARM_HAND[track])
         offset = rest[dofs] - frames.q[i, dofs]
         if float(np.abs(offset).max()) <= NEAR:
             continue
         length = ramp_length(offset, end - start)
-        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length), until)
+        before = frames.q.copy()
+        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length))
+        if _deeper(skel, frames, before, track[0]):
+            frames.q[:] = before
+
+
+def _deeper(skel: Skeleton, frames: Frames, before: FloatArray, side: str) -> bool:
+    """Whether the frames changed from ``before`` take the arm of ``side`` deeper into the
+    body's clearance than it was (and into it): an arm let down from where a place left it
+    swept a forearm 103 mm through a thigh (vehicle_battery female P95), and the clearance
+    pass, pushing it out, moved the place before it off its site."""
+    rows = np.flatnonzero(np.abs(frames.q - before).max(axis=1) > 0.0)
+    if rows.size == 0:
+        return False
+    root = (frames.root_position[rows], frames.root_rotation[rows])
+    was = penetrations(skel, before[rows], root, (side,))[side]
+    now = penetrations(skel, frames.q[rows], root, (side,))[side]
+    return bool((now > np.maximum(was, 0.0)).any())
+
+
+def _settle_trunk(
+    skel: Skeleton, ir: MotionIR, frames: Frames, walk: tuple[float, float], trunk: list[int],
+    offset: FloatArray, until: list[str],
+) -> None:  # fmt: skip
+    """The trunk upright over the walk. Where a segment that moves the trunk or an arm follows
+    (a reach, solved on the trunk as it was), the trunk goes back before the walk ends, so the
+    reach starts from the pose it was solved from: let go of over the reach, the bent trunk
+    came back under arms keyed for it, and a 14 kg battery's hands went 94 mm into a thigh
+    (vehicle_battery female P95); kept upright through an arm-only place, the access panel's
+    hands ended 84-116 mm off the bench. With none, it stays upright to the end. A walk too
+    short for both ramps, or with such a segment during it, is left as it was."""
+    start, end = walk
+    names = set(until)
+    later = next_keyed(ir, names, start)
+    length = ramp_length(offset, end - start)
+    if later is None:
+        keep_until_keyed(skel, ir, frames, trunk, offset, (start, start + length), until)
+        return
+    if later[0] < end - EPS or 2.0 * length > end - start:
+        return
+    t = frames.time
+    rows = np.flatnonzero((t > start + EPS) & (t < end - EPS))  # the walk's ends as they were
+    rise = minimum_jerk(np.clip((t[rows] - start) / length, 0.0, 1.0))
+    fall = minimum_jerk(np.clip((end - t[rows]) / length, 0.0, 1.0))
+    moved = frames.q[np.ix_(rows, trunk)] + np.minimum(rise, fall)[:, None] * offset[None]
+    frames.q[np.ix_(rows, trunk)] = np.clip(moved, skel.lower[trunk], skel.upper[trunk])
 
 
 def _names(skel: Skeleton, dofs: list[int]) -> list[str]:
@@ -130,5 +178,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     walks = sorted((s.start, s.end) for s in ir.on_track("root") if s.kind == "locomotion")
     for start, end in walks:
         held = on_site(ir, np.array([start + EPS]))
-        settle_walk(skel, ir, frames, start, end, free_arms(ir, start, end, held))
+        free = free_arms(ir, start, end, held)
+        # a part carried on the walk keeps the trunk the lift left: carry_pose, the rigid
+        # part's re-solve and the clearance pass own the arms there (straightened under a
+        # 14 kg battery, the hands went 94 mm into a thigh on the place after, female P95)
+        settle_walk(skel, ir, frames, start, end, free, trunk=len(free) == len(ARM_HAND))
     return ir

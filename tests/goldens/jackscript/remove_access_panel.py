@@ -2703,11 +2703,8 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=47.849638, duration=0.072)
     human.KeyRoot(47.9, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
-        'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
-        'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -2716,123 +2713,81 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
     human.KeyRoot(48.0, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'spine_lumbar': (16.699, -11.237, 7.374), 'spine_thoracic': (-14.417, -6.286, 6.751),
-        'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
-        'right_shoulder': (35.062, 34.829, -9.24), 'right_elbow': (90.314, 24.897),
-        'right_wrist': (-16.146, -17.397), 'left_shoulder': (88.702, -28.579, 14.55),
-        'left_elbow': (22.417, 18.169), 'left_wrist': (0.798, -5.097),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
+        'head': (5.153, -0.373), 'right_shoulder': (34.395, 35.22, -9.877),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
     human.KeyRoot(48.1, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'spine_lumbar': (14.295, -9.619, 6.312), 'spine_thoracic': (-12.342, -5.381, 5.779),
         'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167),
-        'right_shoulder': (40.153, 31.705, -3.717), 'right_elbow': (86.912, 24.897),
-        'right_wrist': (-13.812, -15.886), 'left_shoulder': (83.365, -24.012, 14.051),
-        'left_elbow': (30.378, 18.169), 'left_wrist': (-0.167, -3.876),
         'right_hip': (7.244, -0.536, -2.481), 'right_knee': (14.727,),
         'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517), 'left_knee': (18.046,),
         'left_ankle': (7.602, 0.86),
     })
     human.KeyRoot(48.2, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'spine_lumbar': (9.65, -6.493, 4.261), 'spine_thoracic': (-8.331, -3.633, 3.901),
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
-        'right_shoulder': (47.683, 25.353, 5.538), 'right_elbow': (80.315, 24.897),
-        'right_wrist': (-10.056, -14.487), 'left_shoulder': (75.143, -15.65, 12.737),
-        'left_elbow': (41.957, 18.169), 'left_wrist': (-1.876, -2.118),
         'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
         'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
         'left_ankle': (16.48, 1.57),
     })
     human.KeyRoot(48.3, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'spine_lumbar': (4.524, -3.045, 1.998), 'spine_thoracic': (-3.906, -1.703, 1.829),
-        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0),
-        'right_shoulder': (51.817, 16.574, 11.616), 'right_elbow': (74.247, 24.897),
-        'right_wrist': (-7.82, -14.373), 'left_shoulder': (65.291, -7.551, 9.54),
-        'left_elbow': (53.208, 18.169), 'left_wrist': (-4.497, 1.053),
-        'right_hip': (7.574, -0.983, -8.152), 'right_knee': (16.788,),
-        'right_ankle': (8.308, -2.031), 'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,),
-        'left_ankle': (18.612, 1.906),
+        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
+        'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
+        'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
     human.KeyRoot(48.4, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'spine_lumbar': (1.021, -0.687, 0.451), 'spine_thoracic': (-0.882, -0.384, 0.413),
-        'right_shoulder': (48.769, 10.802, 14.375), 'right_elbow': (74.58, 24.897),
-        'right_wrist': (-7.608, -13.971), 'left_shoulder': (54.049, -2.53, 7.266),
-        'left_elbow': (63.88, 18.169), 'left_wrist': (-6.903, 4.53),
         'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
         'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
     human.KeyRoot(48.5, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'spine_lumbar': (0.008, -0.005, 0.003), 'spine_thoracic': (-0.007, -0.003, 0.003),
-        'right_shoulder': (38.936, 8.452, 14.646), 'right_elbow': (82.045, 24.897),
-        'right_wrist': (-9.331, -13.481), 'left_shoulder': (41.796, -0.933, 7.088),
-        'left_elbow': (74.364, 18.169), 'left_wrist': (-8.872, 7.852),
         'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
         'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
     human.KeyRoot(48.6, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'right_shoulder': (26.838, 6.518, 14.274), 'right_elbow': (89.834, 24.897),
-        'right_wrist': (-11.309, -12.718), 'left_shoulder': (29.355, -0.202, 8.11),
-        'left_elbow': (83.09, 18.169), 'left_wrist': (-10.308, 10.609),
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
         'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
         'left_ankle': (7.073, -0.351),
     })
     human.KeyRoot(48.7, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_shoulder': (15.562, 3.663, 13.96), 'right_elbow': (94.608, 24.897),
-        'right_wrist': (-12.867, -12.565), 'left_shoulder': (17.706, -0.01, 8.618),
-        'left_elbow': (88.856, 18.169), 'left_wrist': (-11.507, 12.342),
-        'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
-        'right_ankle': (10.474, 0.616), 'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
+        'spine_thoracic': (-14.684, -6.403, 6.875), 'right_hip': (18.001, 7.349, -19.807),
+        'right_knee': (39.588,), 'right_ankle': (10.474, 0.616),
+        'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
     human.KeyRoot(48.8, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_shoulder': (6.031, 1.038, 13.999), 'right_elbow': (96.864, 24.897),
-        'right_wrist': (-13.878, -12.783), 'left_shoulder': (7.911, 0.086, 9.104),
-        'left_elbow': (91.875, 18.169), 'left_wrist': (-12.353, 13.099),
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
         'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
         'left_ankle': (6.81, -1.859),
     })
     human.KeyRoot(48.9, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'right_shoulder': (-0.538, -1.038, 14.011), 'right_elbow': (96.851, 24.897),
-        'right_wrist': (-14.32, -13.012), 'left_shoulder': (0.88, 0.109, 9.399),
-        'left_elbow': (92.756, 18.169), 'left_wrist': (-12.838, 13.183),
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
         'left_ankle': (6.744, -2.356),
     })
     human.KeyRoot(49.0, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_shoulder': (-4.477, -2.406, 13.958), 'right_elbow': (96.18, 24.897),
-        'right_wrist': (-14.507, -13.28), 'left_shoulder': (-3.4, 0.029, 9.508),
-        'left_elbow': (92.712, 18.169), 'left_wrist': (-13.124, 13.01),
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
     human.KeyRoot(49.1, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'right_shoulder': (-6.247, -3.067, 13.9), 'right_elbow': (95.678, 24.897),
-        'right_wrist': (-14.571, -13.448), 'left_shoulder': (-5.342, -0.047, 9.53),
-        'left_elbow': (92.523, 18.169), 'left_wrist': (-13.257, 12.862),
         'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
         'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
     })
     human.KeyRoot(49.2, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'neck': (0.0, 0.0, 0.0), 'right_shoulder': (-6.618, -3.21, 13.883),
-        'right_elbow': (95.555, 24.897), 'left_shoulder': (-5.752, -0.067, 9.532),
+        'neck': (0.0, 0.0, 0.0), 'right_wrist': (-16.568, -18.281),
         'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
@@ -2890,9 +2845,8 @@ def remove_access_panel():
     })
     human.KeyRoot(50.2, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
     human.KeyJoints(50.2, {
-        'left_elbow': (92.468, 18.169), 'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,),
-        'right_ankle': (19.0, 1.998), 'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,),
-        'left_ankle': (8.41, -2.185),
+        'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,), 'right_ankle': (19.0, 1.998),
+        'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,), 'left_ankle': (8.41, -2.185),
     })
     human.KeyRoot(50.3, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
     human.KeyJoints(50.3, {
@@ -2984,133 +2938,91 @@ def remove_access_panel():
     })
     human.KeyRoot(51.8, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
     human.KeyJoints(51.8, {
-        'right_shoulder': (-6.615, -3.209, 13.884), 'right_elbow': (95.556, 24.897),
-        'left_shoulder': (-5.749, -0.067, 9.532), 'left_elbow': (92.469, 18.169),
         'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
         'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
     })
     human.KeyRoot(51.9, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
     human.KeyJoints(51.9, {
-        'right_shoulder': (-6.155, -3.032, 13.904), 'right_elbow': (95.708, 24.897),
-        'right_wrist': (-14.568, -13.439), 'left_shoulder': (-5.241, -0.042, 9.53),
-        'left_elbow': (92.536, 18.169), 'left_wrist': (-13.25, 12.871),
         'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
         'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
     human.KeyRoot(52.0, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
     human.KeyJoints(52.0, {
-        'right_shoulder': (-4.21, -2.309, 13.965), 'right_elbow': (96.244, 24.897),
-        'right_wrist': (-14.496, -13.257), 'left_shoulder': (-3.108, 0.038, 9.503),
-        'left_elbow': (92.731, 18.169), 'left_wrist': (-13.105, 13.028),
         'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
         'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
     })
     human.KeyRoot(52.1, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
     human.KeyJoints(52.1, {
-        'right_shoulder': (-0.039, -0.872, 14.013), 'right_elbow': (96.897, 24.897),
-        'right_wrist': (-14.292, -12.97), 'left_shoulder': (1.419, 0.113, 9.381),
-        'left_elbow': (92.729, 18.169), 'left_wrist': (-12.802, 13.192),
         'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
         'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
         'left_ankle': (18.697, 1.419),
     })
     human.KeyRoot(52.2, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
     human.KeyJoints(52.2, {
-        'right_shoulder': (6.784, 1.265, 13.996), 'right_elbow': (96.791, 24.897),
-        'right_wrist': (-13.818, -12.733), 'left_shoulder': (8.711, 0.077, 9.064),
-        'left_elbow': (91.709, 18.169), 'left_wrist': (-12.295, 13.064),
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
     human.KeyRoot(52.3, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
     human.KeyJoints(52.3, {
-        'right_shoulder': (16.546, 3.929, 13.967), 'right_elbow': (94.292, 24.897),
-        'right_wrist': (-12.752, -12.512), 'left_shoulder': (18.729, -0.028, 8.567),
-        'left_elbow': (88.444, 18.169), 'left_wrist': (-11.414, 12.225),
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
     human.KeyRoot(52.4, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
     human.KeyJoints(52.4, {
-        'right_shoulder': (27.959, 6.78, 14.337), 'right_elbow': (89.227, 24.897),
-        'right_wrist': (-11.126, -12.661), 'left_shoulder': (30.505, -0.216, 8.07),
-        'left_elbow': (82.397, 18.169), 'left_wrist': (-10.172, 10.39),
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
     human.KeyRoot(52.5, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
     human.KeyJoints(52.5, {
-        'right_shoulder': (40.083, 8.575, 14.698), 'right_elbow': (81.151, 24.897),
-        'right_wrist': (-9.111, -13.429), 'left_shoulder': (42.969, -0.972, 7.006),
-        'left_elbow': (73.406, 18.169), 'left_wrist': (-8.71, 7.551),
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
         'left_ankle': (1.594, 2.233),
     })
     human.KeyRoot(52.6, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
     human.KeyJoints(52.6, {
-        'right_shoulder': (51.869, 9.561, 15.562), 'right_elbow': (70.756, 24.897),
-        'right_wrist': (-6.673, -14.235), 'left_shoulder': (55.234, -1.326, 6.462),
-        'left_elbow': (62.111, 18.169), 'left_wrist': (-6.847, 3.925),
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
         'left_ankle': (-0.141, 0.805),
     })
     human.KeyRoot(52.7, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
     human.KeyJoints(52.7, {
-        'right_shoulder': (62.354, 9.769, 16.87), 'right_elbow': (59.517, 24.897),
-        'right_wrist': (-4.213, -15.258), 'left_shoulder': (66.507, -1.594, 6.294),
-        'left_elbow': (49.626, 18.169), 'left_wrist': (-4.844, -0.179),
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
         'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
         'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
     })
     human.KeyRoot(52.8, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
     human.KeyJoints(52.8, {
-        'right_shoulder': (71.34, 9.061, 17.872), 'right_elbow': (47.87, 24.897),
-        'right_wrist': (-1.975, -15.665), 'left_shoulder': (76.754, -1.868, 6.454),
-        'left_elbow': (36.182, 18.169), 'left_wrist': (-2.684, -4.138),
         'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
         'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
     human.KeyRoot(52.9, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
     human.KeyJoints(52.9, {
-        'right_shoulder': (77.011, 8.324, 18.482), 'right_elbow': (39.746, 24.897),
-        'right_wrist': (-0.602, -15.724), 'left_shoulder': (84.15, -2.184, 6.672),
-        'left_elbow': (25.317, 18.169), 'left_wrist': (-1.066, -6.653),
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
     human.KeyRoot(53.0, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
     human.KeyJoints(53.0, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (79.237, 7.895, 18.502),
-        'right_elbow': (36.337, 24.897), 'right_wrist': (-0.12, -15.614),
-        'left_shoulder': (87.463, -2.359, 6.843), 'left_elbow': (20.077, 18.169),
-        'left_wrist': (-0.355, -7.441), 'right_hip': (9.194, 0.015, 0.003), 'right_knee': (15.81,),
-        'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002), 'left_knee': (15.741,),
-        'left_ankle': (6.58, -0.015),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
+        'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
+        'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=53.069006, duration=0.32772)
     human.KeyRoot(53.1, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(53.1, {
-        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283),
-        'right_shoulder': (34.397, 35.216, -9.876), 'right_elbow': (90.84, 24.897),
-        'right_wrist': (-16.568, -18.28), 'left_shoulder': (89.572, -29.209, 14.64),
-        'left_elbow': (21.153, 18.169), 'left_wrist': (0.919, -5.518),
-        'right_hip': (3.129, 0.0, 0.0), 'right_knee': (5.141,), 'right_ankle': (2.014, 0.0),
-        'left_hip': (3.112, 0.0, 0.0), 'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
+        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
+        'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
+        'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
     human.KeyJoints(53.2, {
         'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
     human.KeyJoints(53.3, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
         'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
@@ -3123,7 +3035,6 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
     human.KeyJoints(53.4, {
-        'spine_lumbar': (0.256, -0.172, 0.113), 'spine_thoracic': (-0.221, -0.096, 0.103),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
         'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
         'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
@@ -3132,25 +3043,21 @@ def remove_access_panel():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.5, {
-        'spine_lumbar': (2.798, -1.883, 1.236), 'spine_thoracic': (-2.416, -1.053, 1.131),
         'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
         'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
         'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
     })
     human.KeyJoints(53.6, {
-        'spine_lumbar': (7.87, -5.296, 3.475), 'spine_thoracic': (-6.795, -2.963, 3.182),
         'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
         'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
         'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
     })
     human.KeyJoints(53.7, {
-        'spine_lumbar': (13.246, -8.913, 5.849), 'spine_thoracic': (-11.436, -4.987, 5.355),
         'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
         'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
         'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
     })
     human.KeyJoints(53.8, {
-        'spine_lumbar': (16.45, -11.069, 7.264), 'spine_thoracic': (-14.203, -6.193, 6.65),
         'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
         'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
         'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
@@ -3158,7 +3065,6 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.9, {
-        'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
         'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
         'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),

@@ -2877,122 +2877,78 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
     human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'spine_lumbar': (16.818, -11.498, 7.489), 'spine_thoracic': (-14.633, -6.415, 6.832),
-        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551),
-        'right_shoulder': (32.879, 37.373, -9.639), 'right_elbow': (90.769, 22.836),
-        'right_wrist': (-12.533, -14.581), 'left_shoulder': (89.876, -29.234, 14.702),
-        'left_elbow': (20.293, 18.178), 'left_wrist': (0.917, -5.564),
+        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551), 'right_elbow': (90.762, 22.836),
         'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
         'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
     human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'spine_lumbar': (15.241, -10.42, 6.787), 'spine_thoracic': (-13.261, -5.813, 6.192),
         'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872),
-        'right_shoulder': (36.943, 35.107, -5.776), 'right_elbow': (88.627, 22.836),
-        'right_wrist': (-11.035, -13.06), 'left_shoulder': (85.544, -25.919, 14.339),
-        'left_elbow': (26.817, 18.178), 'left_wrist': (0.204, -4.402),
         'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
         'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
         'left_ankle': (7.387, 0.62),
     })
     human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'spine_lumbar': (11.207, -7.662, 4.99), 'spine_thoracic': (-9.751, -4.275, 4.553),
         'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
-        'right_shoulder': (44.809, 29.375, 3.037), 'right_elbow': (82.678, 22.836),
-        'right_wrist': (-7.689, -11.695), 'left_shoulder': (77.65, -18.452, 13.388),
-        'left_elbow': (38.559, 18.178), 'left_wrist': (-1.337, -2.695),
         'right_hip': (6.913, -0.846, -4.294), 'right_knee': (14.599,),
         'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
         'left_ankle': (13.045, 1.381),
     })
     human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'spine_lumbar': (6.028, -4.121, 2.684), 'spine_thoracic': (-5.244, -2.299, 2.449),
-        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0),
-        'right_shoulder': (51.131, 20.604, 10.571), 'right_elbow': (75.702, 22.836),
-        'right_wrist': (-4.96, -11.497), 'left_shoulder': (68.688, -9.827, 10.595),
-        'left_elbow': (49.532, 18.178), 'left_wrist': (-3.712, -0.071),
-        'right_hip': (7.118, -1.06, -7.226), 'right_knee': (15.706,),
-        'right_ankle': (8.226, -1.936), 'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,),
-        'left_ankle': (18.33, 1.841),
+        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
+        'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
+        'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,), 'left_ankle': (18.33, 1.841),
     })
     human.KeyRoot(47.7, (-2.442, 72.709, 60.424), (9.724, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'spine_lumbar': (1.853, -1.267, 0.825), 'spine_thoracic': (-1.612, -0.707, 0.753),
-        'right_shoulder': (50.697, 13.462, 14.273), 'right_elbow': (73.512, 22.836),
-        'right_wrist': (-4.099, -11.224), 'left_shoulder': (57.905, -3.637, 7.77),
-        'left_elbow': (60.332, 18.178), 'left_wrist': (-6.251, 3.468),
         'right_hip': (9.468, -0.385, -10.017), 'right_knee': (20.787,),
         'right_ankle': (8.725, -2.016), 'left_hip': (18.903, 5.833, -10.754),
         'left_knee': (41.406,), 'left_ankle': (18.425, 1.87),
     })
     human.KeyRoot(47.8, (-1.893, 72.677, 59.488), (12.556, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'spine_lumbar': (0.104, -0.071, 0.046), 'spine_thoracic': (-0.091, -0.04, 0.042),
-        'right_shoulder': (42.814, 10.391, 15.13), 'right_elbow': (79.126, 22.836),
-        'right_wrist': (-5.042, -10.431), 'left_shoulder': (45.961, -1.105, 6.894),
-        'left_elbow': (70.945, 18.178), 'left_wrist': (-8.329, 6.867),
         'right_hip': (13.505, 1.533, -12.699), 'right_knee': (28.094,), 'right_ankle': (8.77, -1.5),
         'left_hip': (12.416, 5.745, -18.876), 'left_knee': (28.381,), 'left_ankle': (15.239, 1.127),
     })
     human.KeyRoot(47.9, (-1.042, 72.491, 58.454), (15.87, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (30.979, 9.07, 14.904),
-        'right_elbow': (87.576, 22.836), 'right_wrist': (-6.726, -9.593),
-        'left_shoulder': (33.518, -0.373, 7.738), 'left_elbow': (80.481, 18.178),
-        'left_wrist': (-9.948, 9.824), 'right_hip': (16.734, 4.062, -15.469),
-        'right_knee': (34.09,), 'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.403),
-        'left_knee': (14.776,), 'left_ankle': (7.236, -0.041),
+        'right_hip': (16.734, 4.062, -15.469), 'right_knee': (34.09,),
+        'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.403), 'left_knee': (14.776,),
+        'left_ankle': (7.236, -0.041),
     })
     human.KeyRoot(48.0, (-0.197, 72.499, 58.309), (20.038, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'spine_thoracic': (0.0, 0.0, 0.0), 'right_shoulder': (19.325, 6.732, 14.558),
-        'right_elbow': (93.353, 22.836), 'right_wrist': (-8.136, -8.978),
-        'left_shoulder': (21.517, -0.005, 8.413), 'left_elbow': (87.255, 18.178),
-        'left_wrist': (-11.204, 11.903), 'right_hip': (16.85, 6.287, -19.018),
-        'right_knee': (36.102,), 'right_ankle': (8.297, 0.269), 'left_hip': (7.542, 1.188, -15.364),
+        'right_hip': (16.85, 6.287, -19.018), 'right_knee': (36.102,),
+        'right_ankle': (8.297, 0.269), 'left_hip': (7.542, 1.188, -15.364),
         'left_ankle': (6.948, -0.857),
     })
     human.KeyRoot(48.1, (0.847, 72.495, 58.508), (25.571, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_shoulder': (9.0, 4.261, 14.615), 'right_elbow': (96.545, 22.836),
-        'right_wrist': (-9.086, -8.938), 'left_shoulder': (10.958, 0.11, 8.888),
-        'left_elbow': (91.219, 18.178), 'left_wrist': (-12.179, 12.951),
         'right_hip': (20.382, 8.102, -17.83), 'right_knee': (45.254,),
         'right_ankle': (15.607, 1.106), 'left_hip': (7.659, -0.319, -9.982),
         'left_ankle': (6.84, -1.635),
     })
     human.KeyRoot(48.2, (1.83, 72.491, 58.854), (31.669, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_shoulder': (1.535, 2.116, 14.718), 'right_elbow': (97.022, 22.836),
-        'right_wrist': (-9.523, -9.02), 'left_shoulder': (2.991, 0.144, 9.259),
-        'left_elbow': (92.656, 18.178), 'left_wrist': (-12.733, 13.191),
         'right_hip': (22.426, 4.762, -7.963), 'right_knee': (47.247,),
         'right_ankle': (19.163, 1.303), 'left_hip': (7.494, -1.734, -4.013), 'left_knee': (14.051,),
         'left_ankle': (6.689, -2.239),
     })
     human.KeyRoot(48.3, (2.451, 72.597, 59.422), (37.443, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_shoulder': (-3.275, 0.576, 14.757), 'right_wrist': (-9.711, -9.24),
-        'left_shoulder': (-2.217, 0.07, 9.417), 'left_elbow': (92.828, 18.178),
-        'left_wrist': (-13.074, 13.051), 'right_hip': (21.595, -0.8, 5.785),
-        'right_knee': (43.539,), 'right_ankle': (19.138, 1.332), 'left_hip': (8.751, -2.683, 1.578),
-        'left_knee': (16.934,), 'left_ankle': (6.915, -2.411),
+        'right_hip': (21.595, -0.8, 5.785), 'right_knee': (43.539,), 'right_ankle': (19.138, 1.332),
+        'left_hip': (8.751, -2.683, 1.578), 'left_knee': (16.934,), 'left_ankle': (6.915, -2.411),
     })
     human.KeyRoot(48.4, (2.928, 72.632, 61.13), (43.052, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'right_shoulder': (-5.734, -0.291, 14.739), 'right_elbow': (95.858, 22.836),
-        'right_wrist': (-9.778, -9.437), 'left_shoulder': (-4.909, -0.031, 9.456),
-        'left_wrist': (-13.252, 12.865), 'right_hip': (16.036, -4.223, 17.71),
-        'right_knee': (33.493,), 'right_ankle': (17.08, 0.794), 'left_hip': (11.546, -3.342, 6.97),
-        'left_knee': (24.379,), 'left_ankle': (8.56, -1.86),
+        'right_hip': (16.036, -4.223, 17.71), 'right_knee': (33.493,),
+        'right_ankle': (17.08, 0.794), 'left_hip': (11.546, -3.342, 6.97), 'left_knee': (24.379,),
+        'left_ankle': (8.56, -1.86),
     })
     human.KeyRoot(48.5, (3.272, 72.539, 63.045), (48.66, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_shoulder': (-6.495, -0.574, 14.724), 'right_elbow': (95.616, 22.836),
-        'left_shoulder': (-5.747, -0.074, 9.46), 'left_elbow': (92.528, 18.178),
         'right_hip': (7.025, -3.204, 21.816), 'right_knee': (16.2,), 'right_ankle': (8.505, -0.388),
         'left_hip': (14.02, -4.242, 12.459), 'left_knee': (31.237,), 'left_ankle': (9.652, -1.029),
     })
@@ -3004,7 +2960,6 @@ def remove_access_panel_cad():
     })
     human.KeyRoot(48.7, (2.681, 72.487, 63.823), (59.878, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_wrist': (-9.796, -9.513), 'left_wrist': (-13.312, 12.785),
         'right_hip': (5.432, -2.634, 10.766), 'right_ankle': (8.574, -1.562),
         'left_hip': (19.43, -7.565, 20.515), 'left_knee': (42.145,), 'left_ankle': (12.948, 0.076),
     })
@@ -3141,143 +3096,98 @@ def remove_access_panel_cad():
     })
     human.KeyRoot(51.1, (71.563, 70.469, 39.085), (106.271, 0.0, 0.0))
     human.KeyJoints(51.1, {
-        'right_shoulder': (-6.532, -0.588, 14.723), 'right_elbow': (95.603, 22.836),
-        'left_shoulder': (-5.788, -0.076, 9.46), 'right_hip': (20.521, 0.667, 0.25),
-        'right_knee': (11.631,), 'right_ankle': (-8.832, 0.712),
+        'right_hip': (20.521, 0.667, 0.25), 'right_knee': (11.631,), 'right_ankle': (-8.832, 0.712),
         'left_hip': (10.364, -0.487, -0.763), 'left_knee': (62.485,), 'left_ankle': (5.049, -0.906),
     })
     human.KeyRoot(51.2, (78.915, 70.819, 38.086), (106.125, 0.0, 0.0))
     human.KeyJoints(51.2, {
-        'right_shoulder': (-6.304, -0.502, 14.728), 'right_elbow': (95.679, 22.836),
-        'right_wrist': (-9.791, -9.491), 'left_shoulder': (-5.537, -0.062, 9.459),
-        'left_elbow': (92.556, 18.178), 'left_wrist': (-13.295, 12.809),
         'right_hip': (20.106, -0.297, 0.047), 'right_knee': (24.103,),
         'right_ankle': (3.993, -0.263), 'left_hip': (5.503, 0.17, 0.182), 'left_knee': (60.288,),
         'left_ankle': (-4.295, 0.363),
     })
     human.KeyRoot(51.3, (82.398, 71.543, 37.836), (104.06, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'right_shoulder': (-4.867, 0.022, 14.75), 'right_elbow': (96.102, 22.836),
-        'right_wrist': (-9.756, -9.361), 'left_shoulder': (-3.957, 0.011, 9.446),
-        'left_wrist': (-13.188, 12.941), 'right_hip': (15.935, -1.469, 1.88),
-        'right_knee': (21.232,), 'right_ankle': (5.254, -0.895), 'left_hip': (7.24, 0.582, -0.712),
-        'left_knee': (63.417,), 'left_ankle': (3.932, 0.808),
+        'right_hip': (15.935, -1.469, 1.88), 'right_knee': (21.232,),
+        'right_ankle': (5.254, -0.895), 'left_hip': (7.24, 0.582, -0.712), 'left_knee': (63.417,),
+        'left_ankle': (3.932, 0.808),
     })
     human.KeyRoot(51.4, (85.301, 72.065, 37.653), (100.758, 0.0, 0.0))
     human.KeyJoints(51.4, {
-        'right_shoulder': (-1.398, 1.198, 14.75), 'right_elbow': (96.778, 22.836),
-        'right_wrist': (-9.647, -9.126), 'left_shoulder': (-0.176, 0.114, 9.365),
-        'left_elbow': (92.842, 18.178), 'left_wrist': (-12.941, 13.138),
         'right_hip': (12.135, -2.548, 5.09), 'right_knee': (17.899,),
         'right_ankle': (5.582, -1.412), 'left_hip': (22.175, 1.155, -0.526), 'left_knee': (66.181,),
         'left_ankle': (18.852, 0.97),
     })
     human.KeyRoot(51.5, (89.875, 72.002, 37.21), (97.733, 0.0, 0.0))
     human.KeyJoints(51.5, {
-        'right_shoulder': (4.617, 3.028, 14.674), 'right_elbow': (97.002, 22.836),
-        'right_wrist': (-9.365, -8.92), 'left_shoulder': (6.294, 0.142, 9.12),
-        'left_elbow': (92.219, 18.178), 'left_wrist': (-12.51, 13.152),
         'right_hip': (13.556, -4.084, 7.657), 'right_knee': (28.162,),
         'right_ankle': (10.623, -2.147), 'left_hip': (30.435, 2.799, 2.15), 'left_knee': (46.836,),
         'left_ankle': (14.289, 3.502),
     })
     human.KeyRoot(51.6, (101.592, 71.437, 33.978), (94.489, 0.0, 0.0))
     human.KeyJoints(51.6, {
-        'right_shoulder': (13.26, 5.372, 14.618), 'right_elbow': (95.659, 22.836),
-        'right_wrist': (-8.749, -8.946), 'left_shoulder': (15.449, 0.04, 8.67),
-        'left_elbow': (89.858, 18.178), 'left_wrist': (-11.829, 12.611),
         'right_hip': (11.942, -4.594, 10.431), 'right_knee': (44.713,),
         'right_ankle': (16.843, -2.353), 'left_hip': (28.644, 4.602, 4.2), 'left_knee': (27.087,),
         'left_ankle': (-1.217, 6.039),
     })
     human.KeyRoot(51.7, (115.697, 70.974, 28.98), (91.394, 0.0, 0.0))
     human.KeyJoints(51.7, {
-        'right_shoulder': (24.521, 7.904, 14.697), 'right_elbow': (91.089, 22.836),
-        'right_wrist': (-7.539, -9.069), 'left_shoulder': (26.883, -0.08, 8.192),
-        'left_elbow': (84.533, 18.178), 'left_wrist': (-10.648, 11.091),
         'right_hip': (2.474, -1.972, 14.061), 'right_knee': (48.127,),
         'right_ankle': (15.752, -1.504), 'left_hip': (20.234, 4.672, 2.904), 'left_knee': (14.011,),
         'left_ankle': (-5.979, 5.381),
     })
     human.KeyRoot(51.8, (122.619, 71.115, 25.394), (90.0, 0.0, 0.0))
     human.KeyJoints(51.8, {
-        'right_shoulder': (36.492, 9.714, 15.007), 'right_elbow': (83.935, 22.836),
-        'right_wrist': (-5.986, -9.958), 'left_shoulder': (39.199, -0.75, 7.211),
-        'left_elbow': (76.408, 18.178), 'left_wrist': (-9.296, 8.561),
         'right_hip': (-2.101, 0.586, 16.24), 'right_knee': (47.497,),
         'right_ankle': (9.505, -0.033), 'left_hip': (18.533, 2.428, 0.814), 'left_knee': (21.552,),
         'left_ankle': (3.042, 2.561),
     })
     human.KeyRoot(51.9, (122.361, 71.356, 23.693), (90.0, 0.0, 0.0))
     human.KeyJoints(51.9, {
-        'right_shoulder': (48.401, 10.628, 15.665), 'right_elbow': (74.191, 22.836),
-        'right_wrist': (-4.063, -10.958), 'left_shoulder': (51.566, -1.149, 6.562),
-        'left_elbow': (65.755, 18.178), 'left_wrist': (-7.524, 5.195),
         'right_hip': (1.682, 0.97, 17.058), 'right_knee': (53.33,), 'right_ankle': (12.594, 1.817),
         'left_hip': (17.691, 1.016, 0.324), 'left_knee': (19.387,), 'left_ankle': (1.702, 1.066),
     })
     human.KeyRoot(52.0, (121.916, 71.618, 22.478), (90.0, 0.0, 0.0))
     human.KeyJoints(52.0, {
-        'right_shoulder': (59.304, 10.861, 16.929), 'right_elbow': (63.182, 22.836),
-        'right_wrist': (-1.983, -12.322), 'left_shoulder': (63.155, -1.415, 6.328),
-        'left_elbow': (53.569, 18.178), 'left_wrist': (-5.57, 1.187),
         'right_hip': (11.402, 0.869, 14.292), 'right_knee': (56.017,),
         'right_ankle': (19.296, 4.028), 'left_hip': (16.394, 0.004, 0.001), 'left_knee': (15.911,),
         'left_ankle': (-0.469, 0.004),
     })
     human.KeyRoot(52.1, (121.982, 71.86, 22.183), (90.0, 0.0, 0.0))
     human.KeyJoints(52.1, {
-        'right_shoulder': (68.891, 10.133, 18.02), 'right_elbow': (51.348, 22.836),
-        'right_wrist': (-0.08, -13.248), 'left_shoulder': (73.813, -1.651, 6.464),
-        'left_elbow': (40.23, 18.178), 'left_wrist': (-3.384, -2.957),
         'right_hip': (18.917, 1.073, 7.747), 'right_knee': (46.371,),
         'right_ankle': (19.253, 3.572), 'left_hip': (14.77, -0.243, -0.064), 'left_knee': (12.683,),
         'left_ankle': (-2.087, -0.251),
     })
     human.KeyRoot(52.2, (125.023, 71.983, 22.277), (90.0, 0.0, 0.0))
     human.KeyJoints(52.2, {
-        'right_shoulder': (75.514, 9.27, 18.818), 'right_elbow': (42.166, 22.836),
-        'right_wrist': (1.181, -13.733), 'left_shoulder': (82.101, -1.966, 6.697),
-        'left_elbow': (28.488, 18.178), 'left_wrist': (-1.556, -6.031),
         'right_hip': (19.493, 0.501, 1.86), 'right_knee': (33.754,), 'right_ankle': (14.431, 1.125),
         'left_hip': (13.918, -0.164, -0.041), 'left_knee': (16.378,), 'left_ankle': (2.46, -0.169),
     })
     human.KeyRoot(52.3, (129.21, 72.264, 22.406), (90.0, 0.0, 0.0))
     human.KeyJoints(52.3, {
-        'right_shoulder': (78.724, 8.653, 18.992), 'right_elbow': (37.334, 22.836),
-        'right_wrist': (1.697, -13.815), 'left_shoulder': (86.726, -2.2, 6.904),
-        'left_elbow': (21.319, 18.178), 'left_wrist': (-0.537, -7.318),
         'right_hip': (10.536, 0.056, 0.011), 'right_knee': (16.865,), 'right_ankle': (6.335, 0.057),
         'left_hip': (10.514, -0.056, -0.01), 'left_knee': (16.819,), 'left_ankle': (6.306, -0.057),
     })
     human.KeyRoot(52.4, (131.346, 72.988, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(52.4, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (79.283, 8.53, 18.993),
-        'right_elbow': (36.466, 22.836), 'right_wrist': (1.776, -13.814),
-        'left_shoulder': (87.594, -2.249, 6.951), 'left_elbow': (19.922, 18.178),
-        'left_wrist': (-0.352, -7.495), 'right_hip': (3.119, 0.0, 0.0), 'right_knee': (5.12,),
-        'right_ankle': (2.003, 0.0), 'left_hip': (3.105, 0.0, 0.0), 'left_knee': (5.09,),
-        'left_ankle': (1.987, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (3.119, 0.0, 0.0),
+        'right_knee': (5.12,), 'right_ankle': (2.003, 0.0), 'left_hip': (3.105, 0.0, 0.0),
+        'left_knee': (5.09,), 'left_ankle': (1.987, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
     human.KeyRoot(52.5, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {
-        'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561),
-        'right_shoulder': (32.91, 37.386, -9.647), 'right_elbow': (90.762, 22.836),
-        'right_wrist': (-12.532, -14.582), 'left_shoulder': (89.922, -29.245, 14.7),
-        'left_elbow': (20.254, 18.178), 'left_wrist': (0.923, -5.575),
-    })
+    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
     human.KeyJoints(52.6, {
         'neck': (23.728, 22.881, -14.015), 'head': (10.169, -7.627),
-        'left_shoulder': (89.922, -29.245, 14.7), 'left_elbow': (20.254, 18.178),
-        'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.909, 0.0),
-        'left_hip': (3.031, 0.0, 0.0), 'left_knee': (4.935,), 'left_ankle': (1.906, 0.0),
+        'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
+        'left_elbow': (20.254, 18.178), 'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,),
+        'right_ankle': (1.909, 0.0), 'left_hip': (3.031, 0.0, 0.0), 'left_knee': (4.935,),
+        'left_ankle': (1.906, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
-        'spine_lumbar': (0.042, -0.029, 0.019), 'spine_thoracic': (-0.037, -0.016, 0.017),
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
         'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
         'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
@@ -3288,35 +3198,30 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
-        'spine_lumbar': (1.645, -1.124, 0.732), 'spine_thoracic': (-1.431, -0.627, 0.668),
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
         'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
         'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
         'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
     })
     human.KeyJoints(52.9, {
-        'spine_lumbar': (6.048, -4.135, 2.693), 'spine_thoracic': (-5.262, -2.307, 2.457),
         'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
         'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
         'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
     })
     human.KeyJoints(53.0, {
-        'spine_lumbar': (11.589, -7.923, 5.161), 'spine_thoracic': (-10.083, -4.42, 4.708),
         'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
         'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
         'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
     })
     human.KeyJoints(53.1, {
-        'spine_lumbar': (15.648, -10.698, 6.968), 'spine_thoracic': (-13.615, -5.969, 6.357),
         'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
         'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
         'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
     })
     human.KeyJoints(53.2, {
-        'spine_lumbar': (16.878, -11.539, 7.516), 'spine_thoracic': (-14.685, -6.438, 6.856),
         'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
-        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.231, -5.187, 23.202),
-        'left_elbow': (88.485, 11.704), 'left_wrist': (-10.582, 10.664),
+        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
+        'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top

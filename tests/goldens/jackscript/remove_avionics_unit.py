@@ -430,59 +430,52 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'spine_lumbar': (24.443, -2.26, -10.16), 'spine_thoracic': (-3.188, -0.252, -0.868),
-        'neck': (-57.181, -18.994, -23.134), 'head': (-19.871, 11.173),
-        'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,),
-        'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,),
-        'left_ankle': (2.383, -0.006),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-57.181, -18.994, -23.134),
+        'head': (-19.871, 11.173), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
+        'right_knee': (5.94,), 'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014),
+        'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
     human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'spine_lumbar': (23.251, -2.15, -9.664), 'spine_thoracic': (-3.032, -0.239, -0.826),
         'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
         'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,), 'right_ankle': (6.818, 0.388),
         'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,), 'left_ankle': (6.542, -0.385),
     })
     human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'spine_lumbar': (18.533, -1.713, -7.703), 'spine_thoracic': (-2.417, -0.191, -0.658),
         'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891), 'left_elbow': (8.013, -65.263),
         'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
     human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'spine_lumbar': (11.263, -1.041, -4.682), 'neck': (-5.987, -1.989, -2.422),
-        'head': (-2.081, 1.19), 'left_shoulder': (21.36, 163.184, -64.813),
-        'right_hip': (18.851, 1.631, 0.537), 'right_knee': (38.348,),
-        'right_ankle': (18.377, 1.749), 'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,),
-        'left_ankle': (8.083, -1.773),
+        'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
+        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (18.851, 1.631, 0.537),
+        'right_knee': (38.348,), 'right_ankle': (18.377, 1.749),
+        'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,), 'left_ankle': (8.083, -1.773),
     })
     human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'spine_lumbar': (4.396, -0.406, -1.827), 'spine_thoracic': (-0.573, -0.045, -0.156),
         'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (19.911, 4.648, -6.821),
         'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
         'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
     })
     human.KeyRoot(7.4, (2.092, 72.713, 49.963), (-10.614, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (0.601, -0.056, -0.25), 'spine_thoracic': (-0.078, -0.006, -0.021),
         'left_wrist': (7.663, -1.329), 'right_hip': (15.347, 5.98, -15.312),
         'right_knee': (34.413,), 'right_ankle': (17.743, 1.503),
         'left_hip': (11.807, 0.527, -10.868), 'left_knee': (24.956,), 'left_ankle': (8.788, -1.709),
     })
     human.KeyRoot(7.5, (1.248, 72.52, 48.925), (-13.49, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'right_hip': (7.07, 2.973, -18.824),
-        'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
+        'right_hip': (7.07, 2.973, -18.824), 'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
         'left_hip': (15.561, 2.817, -13.346), 'left_knee': (31.733,), 'left_ankle': (8.741, -0.916),
     })
     human.KeyRoot(7.6, (0.379, 72.499, 48.508), (-16.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_thoracic': (0.0, 0.0, 0.0), 'right_hip': (7.453, 1.525, -15.532),
-        'right_knee': (14.604,), 'right_ankle': (7.016, -0.533),
-        'left_hip': (16.709, 4.993, -16.242), 'left_knee': (34.812,), 'left_ankle': (8.391, -0.023),
+        'right_hip': (7.453, 1.525, -15.532), 'right_knee': (14.604,),
+        'right_ankle': (7.016, -0.533), 'left_hip': (16.709, 4.993, -16.242),
+        'left_knee': (34.812,), 'left_ankle': (8.391, -0.023),
     })
     human.KeyRoot(7.7, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
     human.KeyJoints(7.7, {
@@ -699,7 +692,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(11.4, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.4, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
+        'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -710,7 +703,6 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(11.5, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.5, {
-        'spine_lumbar': (0.36, -0.033, -0.15), 'spine_thoracic': (-0.047, -0.004, -0.013),
         'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
         'right_shoulder': (2.557, 164.029, -39.354), 'right_elbow': (8.192, 8.141),
         'right_wrist': (12.393, -10.943), 'left_shoulder': (21.513, 161.878, -63.616),
@@ -718,7 +710,6 @@ def remove_avionics_unit():
         'left_knee': (5.084,),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (2.441, -0.226, -1.015), 'spine_thoracic': (-0.318, -0.025, -0.087),
         'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
         'right_shoulder': (5.145, 154.451, -33.69), 'right_elbow': (12.97, 4.812),
         'right_wrist': (14.255, -11.833), 'left_shoulder': (22.411, 154.185, -56.567),
@@ -727,7 +718,6 @@ def remove_avionics_unit():
         'left_ankle': (1.914, 0.0),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (6.598, -0.61, -2.742), 'spine_thoracic': (-0.86, -0.068, -0.234),
         'right_shoulder': (10.279, 135.448, -22.421), 'right_elbow': (22.449, -1.792),
         'right_wrist': (17.948, -13.607), 'left_shoulder': (24.193, 138.92, -42.553),
         'left_elbow': (26.588, -62.533), 'left_wrist': (17.418, -5.227),
@@ -740,28 +730,24 @@ def remove_avionics_unit():
         'left_elbow': (42.153, -60.171), 'left_wrist': (25.594, -8.573),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (17.608, -1.628, -7.319), 'spine_thoracic': (-2.296, -0.181, -0.625),
         'right_shoulder': (24.665, 82.075, 9.988), 'right_elbow': (48.917, -20.295),
         'right_wrist': (28.274, -18.848), 'left_shoulder': (29.177, 96.001, -2.575),
         'left_elbow': (59.248, -57.361), 'left_wrist': (34.601, -12.483),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (21.851, -2.02, -9.083), 'spine_thoracic': (-2.85, -0.225, -0.776),
         'right_shoulder': (31.86, 54.482, 27.753), 'right_elbow': (61.456, -29.524),
         'right_wrist': (33.26, -21.968), 'left_shoulder': (31.616, 73.659, 18.837),
         'left_elbow': (74.987, -54.064), 'left_wrist': (43.099, -16.841),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (24.033, -2.222, -9.99), 'spine_thoracic': (-3.134, -0.248, -0.854),
         'right_shoulder': (37.593, 30.026, 44.525), 'right_elbow': (69.419, -36.77),
         'right_wrist': (36.702, -25.293), 'left_shoulder': (33.419, 53.503, 38.405),
         'left_elbow': (85.79, -50.124), 'left_wrist': (49.565, -21.607),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'right_shoulder': (41.258, 11.842, 57.608),
-        'right_elbow': (72.356, -41.273), 'right_wrist': (38.333, -28.18),
-        'left_shoulder': (34.428, 38.197, 53.213), 'left_elbow': (90.85, -46.373),
-        'left_wrist': (53.363, -25.85),
+        'right_shoulder': (41.258, 11.842, 57.608), 'right_elbow': (72.356, -41.273),
+        'right_wrist': (38.333, -28.18), 'left_shoulder': (34.428, 38.197, 53.213),
+        'left_elbow': (90.85, -46.373), 'left_wrist': (53.363, -25.85),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top

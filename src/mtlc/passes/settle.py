@@ -1,17 +1,18 @@
-"""Pass 9c: a walk starts from a natural stand: the trunk upright, free arms hanging (issue 19).
+"""Pass 9d: a walk with both hands free starts from a natural stand (issue 19).
 
 A walk keys the legs and the root only; every other joint holds what the segment before it left.
 After a reach that bent the trunk (a 14 kg battery set on a bench at 90 cm, vehicle_battery) and
 a release, the manikin walked back 6.4 s with the trunk bent ~57 deg (lumbar 45, thorax 12) and
 the elbows at 30 and 65 deg: the reach's pose, kept because nothing asked for another.
 
-Here, on the dense frames of each walk, the trunk (lumbar and thorax) goes to its rest pose, and
-each free arm (its hand holds nothing: no grip closed, not on a site, no arm segment during the
-walk) to the comfort pose, on a minimum-jerk ramp from the walk's start (``ramp_length``). The
-correction then stays until the next segment that keys that joint (a reach, a posture) and is
-let go of over that segment (``keep_until_keyed``), so the reach after the walk starts from the
-upright body and ends where it was solved to. An arm that carries a part keeps it (carry_pose
-brings a part carried in both hands near the body).
+Here, on the dense frames of a walk on which neither hand holds anything (no grip closed, not
+on a site, no arm segment during the walk), the trunk (lumbar and thorax) goes to its rest pose
+and each arm to the comfort pose, on minimum-jerk ramps from the walk's start
+(``ramp_length``). The trunk stays upright to the end unless a reach or posture follows, solved
+on the trunk as it was: then it goes back before the walk ends (``_settle_trunk``). An arm stays
+down until its next segment and is let go of over it (``keep_until_keyed``, which carry_pose
+uses too), unless its way down goes deeper into the body (``_deeper``). A walk that carries a
+part is left to carry_pose.
 """
 
 from __future__ import annotations

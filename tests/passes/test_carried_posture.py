@@ -71,12 +71,6 @@ def test_a_part_picked_off_the_floor_rises_with_the_body(
     assert hand[:, 1].min() > -1e-3
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the carrying arm keeps its angles through the stand: flexed 110-120 deg at the "
-    "shoulder to reach the floor, it ends with the box above the shoulder once the trunk is "
-    "upright (the posture analogue of carry_pose is missing)",
-)
 def test_a_box_picked_off_the_floor_comes_up_below_the_shoulder(tmp_path: Path) -> None:
     """Seen in the preview: a person stands up with a box at about waist height, not overhead."""
     path = tmp_path / "pick_up.mtask"

@@ -29,6 +29,7 @@ from mtlc.passes import (
     posture,
     rest,
     sample,
+    settle,
     smooth,
     tool,
     verify,
@@ -56,7 +57,8 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("joint_speed", joint_speed.run),  # the clock stretched where a joint would outrun a person
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("hold", hold.run),  # a hand on a site stays there while the body moves (verify: MT0511)
-    ("carry_pose", carry_pose.run),  # a part carried in both hands on a walk: near the body
+    ("carry_pose", carry_pose.run),  # a carried part near the body: on a walk, through a posture
+    ("settle", settle.run),  # a walk starts from a natural stand: trunk upright, free arms down
     ("balance", balance.run),  # 6. centre of mass over the support polygon
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
     ("carry", carry.run),  # a part in both hands is rigid: its pose drives both (MT0511)

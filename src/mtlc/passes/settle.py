@@ -1,0 +1,187 @@
+"""Pass 9d: a walk with both hands free starts from a natural stand (issue 19).
+
+A walk keys the legs and the root only; every other joint holds what the segment before it left.
+After a reach that bent the trunk (a 14 kg battery set on a bench at 90 cm, vehicle_battery) and
+a release, the manikin walked back 6.4 s with the trunk bent ~57 deg (lumbar 45, thorax 12) and
+the elbows at 30 and 65 deg: the reach's pose, kept because nothing asked for another.
+
+Here, on the dense frames of a walk on which neither hand holds anything (no grip closed, not
+on a site, no arm segment during the walk), the trunk (lumbar and thorax) goes to its rest pose
+and each arm to the comfort pose, on minimum-jerk ramps from the walk's start
+(``ramp_length``). The trunk stays upright to the end unless a reach or posture follows, solved
+on the trunk as it was: then it goes back before the walk ends (``_settle_trunk``). An arm stays
+down until its next segment and is let go of over it (``keep_until_keyed``, which carry_pose
+uses too), unless its way down goes deeper into the body (``_deeper``). A walk that carries a
+part is left to carry_pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection
+
+import numpy as np
+
+from mtlc.body.ik.clearance import penetrations
+from mtlc.body.skeleton import Skeleton
+from mtlc.ir.model import FloatArray, Frames, MotionIR
+from mtlc.passes.context import PassContext
+from mtlc.passes.hold import ARM_HAND, _arm_dofs, _closed_at, on_site
+from mtlc.passes.profile import minimum_jerk
+
+TRUNK = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
+NEAR = math.radians(2.0)  # rad: a group of joints this close to its rest pose is left alone
+SPEED = math.radians(150.0)  # rad/s: a ramp's mean joint speed at most (peak 280 deg/s)
+PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
+MIN_RAMP = 0.6  # s: the shortest ramp
+MIN_FADE = 0.3  # s: the shortest fade of a correction over the segment that keys its joint
+EPS = 1e-9
+
+
+def ramp_length(offset: FloatArray, room: float) -> float:
+    """Seconds a minimum-jerk ramp of ``offset`` (rad) takes: at least ``MIN_RAMP``, no joint
+    faster than ``SPEED`` on average, at most ``room``."""
+    return min(room, max(MIN_RAMP, PEAK * float(np.abs(offset).max(initial=0.0)) / SPEED))
+
+
+def next_keyed(ir: MotionIR, names: Collection[str], after: float) -> tuple[float, float] | None:
+    """(start, end) of the first segment starting at ``after`` or later whose keyframes move
+    any of the dofs ``names``; None when none does."""
+    spans = [
+        (s.start, s.end)
+        for s in ir.segments
+        if s.start >= after - EPS
+        and s.keyframes is not None
+        and not names.isdisjoint(s.keyframes.dofs)
+    ]
+    return min(spans, default=None)
+
+
+def keep_until_keyed(
+    skel: Skeleton, ir: MotionIR, frames: Frames, dofs: list[int], offset: FloatArray,
+    rise: tuple[float, float], until: Collection[str] | None = None,
+) -> None:  # fmt: skip
+    """Add ``offset`` (len(dofs),) to ``dofs`` in place: on a minimum-jerk ramp over ``rise``
+    (start, end), then held until the next segment that keys one of the dofs ``until`` (the
+    dofs themselves by default) starts (in ``rise`` or later), and faded out over that segment
+    (at least ``MIN_FADE``), so the segment, solved from the pose before the correction, ends
+    where it was solved to."""
+    t = frames.time
+    a, b = rise
+    if b > a + EPS:
+        up = minimum_jerk(np.clip((t - a) / (b - a), 0.0, 1.0)) * (t >= a - EPS)
+    else:  # a step: the frames from ``a`` on
+        up = (t >= a - EPS).astype(float)
+    names = set(until) if until is not None else {skel.dof_names[d] for d in dofs}
+    span = next_keyed(ir, names, a)
+    down = np.ones_like(t)
+    end = np.inf
+    if span is not None:  # kept until that segment, let go of over it
+        start, end = span[0], max(span[1], span[0] + MIN_FADE)
+        down = 1.0 - minimum_jerk(np.clip((t - start) / (end - start), 0.0, 1.0))
+    rows = np.flatnonzero((t >= a - EPS) & (t < end))
+    weight = np.minimum(up[rows], down[rows])
+    moved = frames.q[np.ix_(rows, dofs)] + weight[:, None] * offset[None]
+    frames.q[np.ix_(rows, dofs)] = np.clip(moved, skel.lower[dofs], skel.upper[dofs])
+
+
+def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray]) -> list[str]:
+    """The arm tracks whose hand is free over ``start``..``end``: no grip closed at ``start``,
+    not on a site (``held``: ``hold.on_site`` at ``start``), no segment of the arm in between."""
+    out = []
+    for track, hand in ARM_HAND.items():
+        grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
+        busy = any(s.start < end - EPS and s.end > start + EPS for s in ir.on_track(track))
+        if not busy and not _closed_at(grips, start + EPS) and not bool(held[hand][0]):
+            out.append(track)
+    return out
+
+
+def settle_walk(
+    skel: Skeleton, ir: MotionIR, frames: Frames, start: float, end: float, tracks: list[str],
+    trunk: bool = True,
+) -> None:  # fmt: skip
+    """Lead the trunk (``trunk``), and the arms of ``tracks``, to the rest pose from the walk's
+    start."""
+    t = frames.time
+    i = int(np.searchsorted(t, start - EPS))
+    if i >= len(t) or end - start <= EPS:
+        return
+    rest = np.asarray(skel.q_comfort, dtype=float)
+    arms = [n for hand in ARM_HAND.values() for n in _names(skel, _arm_dofs(skel, hand))]
+    spine = [skel.dof_index(n) for n in TRUNK]
+    offset = rest[spine] - frames.q[i, spine]
+    if trunk and float(np.abs(offset).max()) > NEAR:
+        _settle_trunk(skel, ir, frames, (start, end), spine, offset, [*TRUNK, *arms])
+    for track in tracks:  # a free arm hangs until its next segment, let go of over it
+        dofs = _arm_dofs(skel, ARM_HAND[track])
+        offset = rest[dofs] - frames.q[i, dofs]
+        if float(np.abs(offset).max()) <= NEAR:
+            continue
+        length = ramp_length(offset, end - start)
+        before = frames.q.copy()
+        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length))
+        if _deeper(skel, frames, before, track[0]):
+            frames.q[:] = before
+
+
+def _deeper(skel: Skeleton, frames: Frames, before: FloatArray, side: str) -> bool:
+    """Whether the frames changed from ``before`` take the arm of ``side`` deeper into the
+    body's clearance than it was (and into it): an arm let down from where a place left it
+    swept a forearm 103 mm through a thigh (vehicle_battery female P95), and the clearance
+    pass, pushing it out, moved the place before it off its site."""
+    rows = np.flatnonzero(np.abs(frames.q - before).max(axis=1) > 0.0)
+    if rows.size == 0:
+        return False
+    root = (frames.root_position[rows], frames.root_rotation[rows])
+    was = penetrations(skel, before[rows], root, (side,))[side]
+    now = penetrations(skel, frames.q[rows], root, (side,))[side]
+    return bool((now > np.maximum(was, 0.0)).any())
+
+
+def _settle_trunk(
+    skel: Skeleton, ir: MotionIR, frames: Frames, walk: tuple[float, float], trunk: list[int],
+    offset: FloatArray, until: list[str],
+) -> None:  # fmt: skip
+    """The trunk upright over the walk. Where a segment that moves the trunk or an arm follows
+    (a reach, solved on the trunk as it was), the trunk goes back before the walk ends, so the
+    reach starts from the pose it was solved from: let go of over the reach, the bent trunk
+    came back under arms keyed for it, and a 14 kg battery's hands went 94 mm into a thigh
+    (vehicle_battery female P95); kept upright through an arm-only place, the access panel's
+    hands ended 84-116 mm off the bench. With none, it stays upright to the end. A walk too
+    short for both ramps, or with such a segment during it, is left as it was."""
+    start, end = walk
+    names = set(until)
+    later = next_keyed(ir, names, start)
+    length = ramp_length(offset, end - start)
+    if later is None:
+        keep_until_keyed(skel, ir, frames, trunk, offset, (start, start + length), until)
+        return
+    if later[0] < end - EPS or 2.0 * length > end - start:
+        return
+    t = frames.time
+    rows = np.flatnonzero((t > start + EPS) & (t < end - EPS))  # the walk's ends as they were
+    rise = minimum_jerk(np.clip((t[rows] - start) / length, 0.0, 1.0))
+    fall = minimum_jerk(np.clip((end - t[rows]) / length, 0.0, 1.0))
+    moved = frames.q[np.ix_(rows, trunk)] + np.minimum(rise, fall)[:, None] * offset[None]
+    frames.q[np.ix_(rows, trunk)] = np.clip(moved, skel.lower[trunk], skel.upper[trunk])
+
+
+def _names(skel: Skeleton, dofs: list[int]) -> list[str]:
+    return [skel.dof_names[d] for d in dofs]
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    skel = ir.skeleton
+    if frames is None or not len(frames.time) or skel is None:
+        return ir
+    walks = sorted((s.start, s.end) for s in ir.on_track("root") if s.kind == "locomotion")
+    for start, end in walks:
+        held = on_site(ir, np.array([start + EPS]))
+        free = free_arms(ir, start, end, held)
+        # a part carried on the walk keeps the trunk the lift left: carry_pose, the rigid
+        # part's re-solve and the clearance pass own the arms there (straightened under a
+        # 14 kg battery, the hands went 94 mm into a thigh on the place after, female P95)
+        settle_walk(skel, ir, frames, start, end, free, trunk=len(free) == len(ARM_HAND))
+    return ir

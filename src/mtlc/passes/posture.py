@@ -52,7 +52,13 @@ from mtlc.passes.kneel import (
 from mtlc.passes.locomotion import LegModel, leg_fk, leg_ik, leg_model
 from mtlc.passes.profile import minimum_jerk
 from mtlc.passes.stance import WIDE_RESULT
-from mtlc.passes.state import PoseState, mark, reanchor, start_posture_from
+from mtlc.passes.state import (
+    PoseState,
+    mark,
+    reanchor,
+    standing_before,
+    start_posture_from,
+)
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 LEG_DOFS = tuple(
@@ -987,7 +993,7 @@ def _start_from(seg: Segment, state: PoseState, q0: FloatArray, fade: bool = Tru
     assert kf is not None
     first = q0[[state.skel.dof_index(n) for n in kf.dofs]]
     if fade:
-        start_posture_from(seg, first)
+        start_posture_from(seg, first, standing_before(state.ir, seg))
     else:
         kf.q[0] = first
     if kf.root_position is not None:

@@ -371,26 +371,39 @@ def reanchor(
         q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
         if seg.kind == "posture":
-            start_posture_from(seg, q[idx])
+            start_posture_from(seg, q[idx], standing_before(ir, seg))
             if kf.root_position is not None:
                 kf.root_position[0, 1] = state.height_at(seg.start, skip=together)
         else:
             kf.q[0] = q[idx]
 
 
-def start_posture_from(seg: Segment, first: FloatArray) -> None:
+def standing_before(ir: MotionIR, seg: Segment) -> bool:
+    """The body stands (or bends) when ``seg`` starts: no squat, kneel or sit is its posture."""
+    before = [
+        s
+        for s in ir.on_track("root")
+        if s.kind == "posture" and s is not seg and s.start < seg.start - 1e-9
+    ]
+    last = max(before, key=lambda s: s.start, default=None)
+    return last is None or last.goal.params.get("posture") in ("stand", "bend")
+
+
+def start_posture_from(seg: Segment, first: FloatArray, fade: bool = True) -> None:
     """A posture's keys from ``first``, the pose before it: its first key is that pose, and
-    what the trunk has there that the keys did not see (the posture pass runs before the
-    reaches: a reach to the floor leaned it 90°) is let go over the whole posture with a
-    minimum-jerk share, not between the first two keys (a stand after such a reach brought the
-    trunk up 60° in 0.3 s). The legs keep the posture's plan (the feet stand on it), the arms
-    their own ramps (``posture.restate_stand_arms``), and a posture right after a kneel the
-    kneel's plan."""
+    (``fade``) what the trunk has there that the keys did not see (the posture pass runs
+    before the reaches: a reach to the floor leaned it 90°) is let go over the whole posture
+    with a minimum-jerk share, not between the first two keys (a stand after such a reach
+    brought the trunk up 60° in 0.3 s). The legs keep the posture's plan (the feet stand on
+    it), the arms their own ramps (``posture.restate_stand_arms``); a posture right after a
+    kneel keeps the kneel's plan, and one from a squat or a kneel is not faded (``fade``
+    false: rising with a carried part, a trunk still leaned put the fingertips 91 mm under
+    the floor, tests/passes/test_lift_carry_pose.py)."""
     kf = seg.keyframes
     assert kf is not None
     trunk = [k for k, name in enumerate(kf.dofs) if name.startswith(TRUNK_PREFIXES)]
     after_kneel = (seg.result or {}).get("root") == "keyed"  # the kneel's plan paces it
-    if trunk and not after_kneel:
+    if fade and trunk and not after_kneel:
         change = first[trunk] - kf.q[0, trunk]
         share = minimum_jerk((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
         kf.q[:, trunk] += (1.0 - share)[:, None] * change[None, :]

@@ -321,27 +321,89 @@ def _solve_keys(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     clock: FloatArray,
-    first: str = "arm",
-) -> tuple[FloatArray, str, FloatArray]:
+    trunk: FloatArray | None = None,
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
     """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
     (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
-    first, the torso when the arm leaves a keyframe short (``first``: the series' strokes so
-    far went with the torso, so this one starts and ends on their pose). Also the reach and
-    the tip's distance per keyframe."""
+    alone where it reaches every key, else on one still trunk (``_frozen_trunk``: a mechanic
+    keeps the trunk still and swings the wrench with the arm; solved with the torso at every
+    key, the trunk pumped 15 deg with every stroke). ``trunk`` is the series' trunk so far
+    (its strokes share it). Also the reach, the tip's distance per keyframe and the trunk."""
     sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
-    best, reach = None, "arm"
-    for r in (first, "torso" if first == "arm" else "arm"):
-        q = _chain(state, sites, hands, tips, q0, root, r)
+
+    def solved(start: FloatArray, reach: str, fallback: str | None = None) -> Candidate:
+        q = _chain(state, sites, hands, tips, start, root, reach, fallback)
         q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
+        r = reach if fallback is None else fallback
         q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r, clock[1:])
-        err = _errors(state, q, root, sites, [hands, tips])
-        if best is None or err.max() < best[1].max() - 1e-6:
-            best, reach = (q, err), r
-        if best[1].max() <= TOLERANCE:
-            break
-    assert best is not None
-    tip_err = _errors(state, best[0], root, [seg.goal.effector], [tips])
-    return best[0], reach, tip_err
+        return q, _errors(state, q, root, sites, [hands, tips]), r, trunk
+
+    found: list[Candidate] = []  # in the order preferred where they are as near
+    if trunk is None:
+        found.append(solved(q0, "arm"))
+        if found[0][1].max() <= TOLERANCE:
+            return _answer(state, seg, tips, root, found[0])
+        torso = solved(q0, "torso")
+        idx = state.skel.dofs_of_joints(TRUNK_JOINTS)
+
+        def reaches(t: FloatArray) -> bool:
+            q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle")
+            return bool(_errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE)
+
+        trunk = _frozen_trunk(reaches, q0, idx, torso[0][int(np.argmax(found[0][1])), idx])
+        found.append(torso)
+    still = _with_trunk(state, q0, trunk)
+    found.insert(0, solved(still, "girdle"))
+    if found[0][1].max() > TOLERANCE:  # the torso only where the still trunk leaves a key short
+        found.insert(1, solved(still, "girdle", "torso"))
+    return _answer(state, seg, tips, root, min(found, key=_worst))
+
+
+Candidate = tuple[FloatArray, FloatArray, str, "FloatArray | None"]  # poses, errors, reach, trunk
+
+
+def _answer(
+    state: PoseState, seg: Segment, tips: FloatArray, root: Any, best: Candidate
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
+    """A solution as ``_solve_keys`` returns it, with the tip's distance per keyframe."""
+    q, _, reach, trunk = best
+    return q, reach, _errors(state, q, root, [seg.goal.effector], [tips]), trunk
+
+
+def _worst(candidate: Candidate) -> float:
+    """A solution's largest distance to its goals, counted as reached within the tolerance
+    (so the first of two solutions that reach every key is kept)."""
+    return max(float(candidate[1].max()), TOLERANCE)
+
+
+TRUNK_JOINTS = ("lumbar", "thorax")  # held still through a fastener's strokes
+
+
+def _with_trunk(state: PoseState, q: FloatArray, trunk: FloatArray) -> FloatArray:
+    """``q`` with the trunk's dofs set to ``trunk``."""
+    out = q.copy()
+    out[state.skel.dofs_of_joints(TRUNK_JOINTS)] = trunk
+    return out
+
+
+TRUNK_HALVINGS = 3  # bisections of the way from the reach pose's trunk to the leaning one
+
+
+def _frozen_trunk(
+    reaches: Callable[[FloatArray], bool], q0: FloatArray, idx: list[int], lean: FloatArray
+) -> FloatArray:
+    """The trunk a series of strokes keeps still: the least part of the way from the reach
+    pose's trunk to ``lean`` (the torso-chained solution's trunk at the key the arm alone misses
+    most) with which the arm reaches every key (``reaches``), found by bisection; so the trunk
+    leans in once, no further than it must, and stays."""
+    lo, hi = 0.0, 1.0
+    for _ in range(TRUNK_HALVINGS):
+        mid = 0.5 * (lo + hi)
+        if reaches(q0[idx] + mid * (lean - q0[idx])):
+            hi = mid
+        else:
+            lo = mid
+    return q0[idx] + hi * (lean - q0[idx])
 
 
 def _chain(
@@ -352,6 +414,7 @@ def _chain(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     reach: str,
+    fallback: str | None = None,
 ) -> FloatArray:
     """(K, D) keyframes solved one after the other, each from the one before (the first from
     ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
@@ -359,14 +422,14 @@ def _chain(
     a 40 deg step between two frames). Random restarts are used only where a warm start
     stalls short of the goal, and kept only when they reach it: on a fastener out of reach every
     key is short, and the restarts' slightly nearer poses flipped the shoulder by 175 deg
-    between neighbouring keys."""
+    between neighbouring keys. With a ``fallback`` reach, a key ``reach`` leaves short is
+    solved again with it, and the next key starts from ``q0``'s dofs outside ``reach``
+    (the still trunk comes back where it can)."""
     skel = state.skel
     k = len(hands)
-    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
-                    root_rotation=root[1][None])  # fmt: skip
+    models = [_key_model(skel, sites, q0, root, r) for r in (reach, fallback) if r is not None]
     out = np.empty((k, len(q0)))
     prev = q0
-    scalar = _scalar_chain(skel, model, root)
     for i in range(k):
         goals = [
             Goal(sites[0], position=hands[i : i + 1]),
@@ -374,18 +437,45 @@ def _chain(
         ]
         kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
         targets = np.concatenate([hands[i], tips[i]])
-        solve = _key_solver(skel, model, scalar, goals, targets, prev, **kw)
-        q = solve(0)
-        err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-        if err > TOLERANCE:
-            q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
-            # most restarts find nothing nearer: the same pose is as short (err), not measured
-            if not np.array_equal(q2, q):
-                err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-                if err2 <= TOLERANCE:  # a restart short too is no better: another branch
-                    q = q2
+        for model, scalar in models:
+            start = prev
+            if len(models) > 1:
+                start = q0.copy()
+                start[model.active] = prev[model.active]
+            q, err = _key_solve(state, sites, root, hands[i], tips[i],
+                                _key_solver(skel, model, scalar, goals, targets, start, **kw))  # fmt: skip
+            if err <= TOLERANCE:
+                break
         out[i] = prev = q[0]
     return out
+
+
+def _key_model(
+    skel: Skeleton, sites: list[str], q0: FloatArray, root: Any, reach: str
+) -> tuple[ChainModel, ScalarChain | None]:
+    """A chain's model for the keys solved from ``q0`` and its scalar chain."""
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
+    return model, _scalar_chain(skel, model, root)
+
+
+def _key_solve(
+    state: PoseState, sites: list[str], root: Any, hand: FloatArray, tip: FloatArray,
+    solve: Callable[[int], FloatArray],
+) -> tuple[FloatArray, float]:  # fmt: skip
+    """A key's (1, D) pose and distance to its goals: the warm start, then restarts where it
+    stalls short, kept only when they reach the goals (a restart short too is another branch)."""
+    targets = [hand[None], tip[None]]
+    q = solve(0)
+    err = float(_errors(state, q, root, sites, targets)[0])
+    if err > TOLERANCE:
+        q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
+        # most restarts find nothing nearer: the same pose is as short (err), not measured
+        if not np.array_equal(q2, q):
+            err2 = float(_errors(state, q2, root, sites, targets)[0])
+            if err2 <= TOLERANCE:
+                q, err = q2, err2
+    return q, err
 
 
 def _scalar_chain(
@@ -526,6 +616,7 @@ class Series:
     solved: dict[tuple[Any, ...], StrokeSolution] = dataclasses.field(default_factory=dict)
     previous: Segment | None = None  # the stroke before, whose last keyframe this one starts at
     tip_errors: dict[bytes, float] = dataclasses.field(default_factory=dict)  # by pose
+    trunk: FloatArray | None = None  # the lumbar and thorax dofs its strokes keep still
 
 
 def _start_pose(state: PoseState, seg: Segment, run: Series) -> FloatArray:
@@ -585,8 +676,9 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
     clock = key_times(frac, bool(lift.max() > 0))
-    first = next((s.reach for s in run.solved.values()), "arm")
-    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root, clock, first)
+    q, reach, tip_err, run.trunk = _solve_keys(
+        state, seg, hands, tips, run.q_reached, run.root, clock, run.trunk
+    )
     q, tip_err = _closed(q, tip_err, frac, lift)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]

@@ -348,7 +348,8 @@ def _solve_keys(
 
         def reaches(t: FloatArray) -> bool:
             q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle")
-            return bool(_errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE)
+            reached = _errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE
+            return bool(reached and _off_stops(state, q, seg.goal.effector[0]))
 
         trunk = _frozen_trunk(reaches, q0, idx, torso[0][int(np.argmax(found[0][1])), idx])
         found.append(torso)
@@ -387,6 +388,19 @@ def _with_trunk(state: PoseState, q: FloatArray, trunk: FloatArray) -> FloatArra
 
 
 TRUNK_HALVINGS = 3  # bisections of the way from the reach pose's trunk to the leaning one
+
+
+STOP_MARGIN = math.radians(2.0)  # a reaching arm's girdle, shoulder and elbow this off stops
+
+
+def _off_stops(state: PoseState, q: FloatArray, side: str) -> bool:
+    """Whether keys ``q`` keep the clavicle, shoulder and elbow off their stops (the wrist
+    turns to its stops: the forearm's roll takes the rest). Leaned in just enough for the tip to
+    reach, the arm swung at its stops and the tip left the bolt by 11 mm between the keys."""
+    skel = state.skel
+    idx = skel.dofs_of_joints([f"{side}_clavicle", f"{side}_shoulder", f"{side}_elbow"])
+    lo, hi = skel.lower[idx] + STOP_MARGIN, skel.upper[idx] - STOP_MARGIN
+    return bool(np.all((q[:, idx] >= lo) & (q[:, idx] <= hi)))
 
 
 def _frozen_trunk(
@@ -720,7 +734,10 @@ def _bent(
     tips = sol.tips[keys]
     rp, rr = np.tile(run.root[0], (k, 1)), np.tile(run.root[1], (k, 1))
     eff = seg.goal.effector
-    q = solve_ta(skel, [Goal(eff, position=tips)], guess, reach=sol.reach, restarts=0,
+    # a still trunk's stroke blends from or to the reach pose's trunk: the arm alone on the
+    # trunk half-way left the tip 11 mm off the bolt; the torso corrects it
+    reach = "torso" if sol.reach == "girdle" else sol.reach
+    q = solve_ta(skel, [Goal(eff, position=tips)], guess, reach=reach, restarts=0,
                  null_gain=0.0, tol=2e-4, root_position=rp, root_rotation=rr).q  # fmt: skip
     return q, _errors(state, q, run.root, [eff], [tips])
 

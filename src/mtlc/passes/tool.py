@@ -321,29 +321,39 @@ def _solve_keys(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     clock: FloatArray,
+    first: str = "arm",
     trunk: FloatArray | None = None,
 ) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
     """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
     (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
-    alone where it reaches every key, else on one still trunk (``_frozen_trunk``: a mechanic
-    keeps the trunk still and swings the wrench with the arm; solved with the torso at every
-    key, the trunk pumped 15 deg with every stroke). ``trunk`` is the series' trunk so far
-    (its strokes share it). Also the reach, the tip's distance per keyframe and the trunk."""
+    first, else on one still trunk (``_frozen_trunk``, reach ``girdle``: a mechanic keeps the
+    trunk still and swings the wrench with the arm; solved with the torso at every key, the
+    trunk pumped 15 deg with every stroke) where the clavicle and arm on it reach every key,
+    else the torso at every key (``first``: the series' strokes so far went with the torso,
+    so this one starts and ends on their pose; ``trunk``: the still trunk its strokes share).
+    Also the reach, the tip's distance per keyframe and the series' still trunk."""
     sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
 
-    def solved(start: FloatArray, reach: str, fallback: str | None = None) -> Candidate:
-        q = _chain(state, sites, hands, tips, start, root, reach, fallback)
+    def solved(start: FloatArray, reach: str) -> tuple[FloatArray, FloatArray]:
+        q = _chain(state, sites, hands, tips, start, root, reach)
         q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
-        r = reach if fallback is None else fallback
-        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r, clock[1:])
-        return q, _errors(state, q, root, sites, [hands, tips]), r, trunk
+        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, reach, clock[1:])
+        return q, _errors(state, q, root, sites, [hands, tips])
 
-    found: list[Candidate] = []  # in the order preferred where they are as near
-    if trunk is None:
-        found.append(solved(q0, "arm"))
-        if found[0][1].max() <= TOLERANCE:
-            return _answer(state, seg, tips, root, found[0])
-        torso = solved(q0, "torso")
+    if trunk is not None:
+        q, err = solved(_with_trunk(state, q0, trunk), "girdle")
+        if err.max() <= TOLERANCE:
+            return _answer(state, seg, tips, root, q, "girdle", trunk)
+    tried: dict[str, tuple[FloatArray, FloatArray]] = {}
+    best, reach = None, "arm"
+    for r in (first, "torso" if first == "arm" else "arm"):
+        q, err = tried[r] = solved(q0, r)
+        if best is None or err.max() < best[1].max() - 1e-6:
+            best, reach = (q, err), r
+        if best[1].max() <= TOLERANCE:
+            break
+    assert best is not None
+    if trunk is None and reach == "torso" and "arm" in tried:
         idx = state.skel.dofs_of_joints(TRUNK_JOINTS)
 
         def reaches(t: FloatArray) -> bool:
@@ -351,30 +361,20 @@ def _solve_keys(
             reached = _errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE
             return bool(reached and _off_stops(state, q, seg.goal.effector[0]))
 
-        trunk = _frozen_trunk(reaches, q0, idx, torso[0][int(np.argmax(found[0][1])), idx])
-        found.append(torso)
-    still = _with_trunk(state, q0, trunk)
-    found.insert(0, solved(still, "girdle"))
-    if found[0][1].max() > TOLERANCE:  # the torso only where the still trunk leaves a key short
-        found.insert(1, solved(still, "girdle", "torso"))
-    return _answer(state, seg, tips, root, min(found, key=_worst))
-
-
-Candidate = tuple[FloatArray, FloatArray, str, "FloatArray | None"]  # poses, errors, reach, trunk
+        lean = tried["torso"][0][int(np.argmax(tried["arm"][1])), idx]
+        still = _frozen_trunk(reaches, q0, idx, lean)
+        q, err = solved(_with_trunk(state, q0, still), "girdle")
+        if err.max() <= TOLERANCE:
+            return _answer(state, seg, tips, root, q, "girdle", still)
+    return _answer(state, seg, tips, root, best[0], reach, None)
 
 
 def _answer(
-    state: PoseState, seg: Segment, tips: FloatArray, root: Any, best: Candidate
-) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
+    state: PoseState, seg: Segment, tips: FloatArray, root: Any, q: FloatArray, reach: str,
+    trunk: FloatArray | None,
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:  # fmt: skip
     """A solution as ``_solve_keys`` returns it, with the tip's distance per keyframe."""
-    q, _, reach, trunk = best
     return q, reach, _errors(state, q, root, [seg.goal.effector], [tips]), trunk
-
-
-def _worst(candidate: Candidate) -> float:
-    """A solution's largest distance to its goals, counted as reached within the tolerance
-    (so the first of two solutions that reach every key is kept)."""
-    return max(float(candidate[1].max()), TOLERANCE)
 
 
 TRUNK_JOINTS = ("lumbar", "thorax")  # held still through a fastener's strokes
@@ -428,7 +428,6 @@ def _chain(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     reach: str,
-    fallback: str | None = None,
 ) -> FloatArray:
     """(K, D) keyframes solved one after the other, each from the one before (the first from
     ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
@@ -436,14 +435,14 @@ def _chain(
     a 40 deg step between two frames). Random restarts are used only where a warm start
     stalls short of the goal, and kept only when they reach it: on a fastener out of reach every
     key is short, and the restarts' slightly nearer poses flipped the shoulder by 175 deg
-    between neighbouring keys. With a ``fallback`` reach, a key ``reach`` leaves short is
-    solved again with it, and the next key starts from ``q0``'s dofs outside ``reach``
-    (the still trunk comes back where it can)."""
+    between neighbouring keys."""
     skel = state.skel
     k = len(hands)
-    models = [_key_model(skel, sites, q0, root, r) for r in (reach, fallback) if r is not None]
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
     out = np.empty((k, len(q0)))
     prev = q0
+    scalar = _scalar_chain(skel, model, root)
     for i in range(k):
         goals = [
             Goal(sites[0], position=hands[i : i + 1]),
@@ -451,45 +450,18 @@ def _chain(
         ]
         kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
         targets = np.concatenate([hands[i], tips[i]])
-        for model, scalar in models:
-            start = prev
-            if len(models) > 1:
-                start = q0.copy()
-                start[model.active] = prev[model.active]
-            q, err = _key_solve(state, sites, root, hands[i], tips[i],
-                                _key_solver(skel, model, scalar, goals, targets, start, **kw))  # fmt: skip
-            if err <= TOLERANCE:
-                break
+        solve = _key_solver(skel, model, scalar, goals, targets, prev, **kw)
+        q = solve(0)
+        err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
+        if err > TOLERANCE:
+            q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
+            # most restarts find nothing nearer: the same pose is as short (err), not measured
+            if not np.array_equal(q2, q):
+                err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
+                if err2 <= TOLERANCE:  # a restart short too is no better: another branch
+                    q = q2
         out[i] = prev = q[0]
     return out
-
-
-def _key_model(
-    skel: Skeleton, sites: list[str], q0: FloatArray, root: Any, reach: str
-) -> tuple[ChainModel, ScalarChain | None]:
-    """A chain's model for the keys solved from ``q0`` and its scalar chain."""
-    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
-                    root_rotation=root[1][None])  # fmt: skip
-    return model, _scalar_chain(skel, model, root)
-
-
-def _key_solve(
-    state: PoseState, sites: list[str], root: Any, hand: FloatArray, tip: FloatArray,
-    solve: Callable[[int], FloatArray],
-) -> tuple[FloatArray, float]:  # fmt: skip
-    """A key's (1, D) pose and distance to its goals: the warm start, then restarts where it
-    stalls short, kept only when they reach the goals (a restart short too is another branch)."""
-    targets = [hand[None], tip[None]]
-    q = solve(0)
-    err = float(_errors(state, q, root, sites, targets)[0])
-    if err > TOLERANCE:
-        q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
-        # most restarts find nothing nearer: the same pose is as short (err), not measured
-        if not np.array_equal(q2, q):
-            err2 = float(_errors(state, q2, root, sites, targets)[0])
-            if err2 <= TOLERANCE:
-                q, err = q2, err2
-    return q, err
 
 
 def _scalar_chain(
@@ -690,9 +662,11 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
     clock = key_times(frac, bool(lift.max() > 0))
-    q, reach, tip_err, run.trunk = _solve_keys(
-        state, seg, hands, tips, run.q_reached, run.root, clock, run.trunk
+    first = "arm" if next((s.reach for s in run.solved.values()), "arm") == "arm" else "torso"
+    q, reach, tip_err, trunk = _solve_keys(
+        state, seg, hands, tips, run.q_reached, run.root, clock, first, run.trunk
     )
+    run.trunk = run.trunk if trunk is None else trunk
     q, tip_err = _closed(q, tip_err, frac, lift)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]

@@ -645,605 +645,606 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.163, -0.504, -14.994), 'head': (0.295, -0.015), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
-        'right_wrist': (-1.354, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (4.015, -13.313, 9.326), 'spine_thoracic': (-9.379, -3.308, 8.773),
-        'neck': (2.127, -0.435, -12.307), 'head': (2.25, -0.014), 'right_clavicle': (6.531, 11.198),
-        'right_shoulder': (89.378, 10.83, 1.788), 'right_elbow': (21.348, 11.894),
-        'right_wrist': (-0.27, -24.133),
+        'spine_lumbar': (6.372, -14.925, 9.149), 'spine_thoracic': (-9.903, -5.253, 8.836),
+        'neck': (1.293, -0.487, -15.469), 'head': (1.434, -0.014), 'right_clavicle': (4.823, 7.227),
+        'right_shoulder': (87.096, 8.841, 1.653), 'right_elbow': (31.533, 11.734),
+        'right_wrist': (-1.289, -29.982),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (-0.16, -18.723, 5.873), 'spine_thoracic': (-11.187, -6.291, 7.01),
-        'neck': (4.935, -0.39, -13.171), 'head': (5.068, -0.014),
-        'right_clavicle': (16.668, 13.908), 'right_shoulder': (87.778, 18.717, 6.497),
-        'right_elbow': (5.278, 17.581), 'right_wrist': (0.801, -15.801),
+        'spine_lumbar': (4.541, -19.777, 4.88), 'spine_thoracic': (-11.346, -9.903, 6.437),
+        'neck': (3.207, -0.463, -16.404), 'head': (3.36, -0.014), 'right_clavicle': (16.913, 4.343),
+        'right_shoulder': (82.918, 14.602, 8.633), 'right_elbow': (24.528, 19.541),
+        'right_wrist': (1.893, -25.605),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (1.158, -19.907, 4.794), 'spine_thoracic': (-11.665, -8.465, 6.64),
-        'neck': (4.722, -0.409, -14.328), 'head': (4.863, -0.014),
-        'right_clavicle': (23.186, 11.719), 'right_shoulder': (87.09, 21.027, 12.751),
-        'right_elbow': (4.576, 23.818), 'right_wrist': (0.695, -10.929),
+        'spine_lumbar': (5.727, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.804, -0.463, -15.79), 'head': (2.952, -0.014), 'right_clavicle': (21.909, 3.56),
+        'right_shoulder': (82.743, 17.162, 12.873), 'right_elbow': (25.256, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-2.549, -20.0, 5.07), 'spine_thoracic': (-11.18, -6.791, 6.637),
-        'neck': (5.985, -0.359, -12.486), 'head': (6.113, -0.014), 'right_clavicle': (18.121, 9.37),
-        'right_shoulder': (85.57, 12.802, 7.478), 'right_elbow': (5.901, 18.013),
-        'right_wrist': (-0.766, -16.688),
+        'spine_lumbar': (-1.53, -19.425, 6.759), 'spine_thoracic': (-11.349, -3.766, 7.666),
+        'neck': (5.537, -0.387, -13.913), 'head': (5.674, -0.014),
+        'right_clavicle': (10.451, 6.659), 'right_shoulder': (81.719, 8.079, 2.021),
+        'right_elbow': (21.029, 12.727), 'right_wrist': (-0.87, -29.845),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (1.146, -19.06, 7.15), 'spine_thoracic': (-10.15, -3.597, 8.189),
-        'neck': (3.786, -0.44, -15.41), 'head': (3.932, -0.014), 'right_clavicle': (4.256, 9.527),
-        'right_shoulder': (88.309, 8.228, -4.627), 'right_elbow': (16.516, 6.194),
-        'right_wrist': (-3.741, -25.683),
+        'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.286, -3.485, 8.9),
+        'neck': (3.369, -0.461, -16.542), 'head': (3.523, -0.014), 'right_clavicle': (4.092, 7.555),
+        'right_shoulder': (87.046, 7.517, -3.752), 'right_elbow': (22.081, 7.543),
+        'right_wrist': (-3.302, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
-        'spine_lumbar': (1.822, -19.784, 6.589), 'spine_thoracic': (-9.11, -4.939, 7.966),
-        'neck': (3.084, -0.465, -16.402), 'head': (3.237, -0.014), 'right_clavicle': (2.079, 9.321),
-        'right_shoulder': (88.278, 8.544, -4.103), 'right_elbow': (21.757, 7.173),
-        'right_wrist': (-3.195, -28.972),
+        'spine_lumbar': (2.468, -17.282, 8.628), 'spine_thoracic': (-8.857, -6.032, 8.39),
+        'neck': (2.741, -0.475, -16.737), 'head': (2.895, -0.014), 'right_clavicle': (2.864, 7.288),
+        'right_shoulder': (88.599, 6.929, -3.84), 'right_elbow': (22.55, 7.423),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (-0.913, -19.735, 5.894), 'spine_thoracic': (-10.805, -5.355, 7.213),
-        'neck': (5.077, -0.395, -13.82), 'head': (5.214, -0.014),
-        'right_clavicle': (11.739, 13.639), 'right_shoulder': (88.066, 16.018, 1.171),
-        'right_elbow': (5.995, 12.581), 'right_wrist': (-0.453, -19.441),
+        'spine_lumbar': (2.976, -19.743, 6.337), 'spine_thoracic': (-10.935, -9.349, 7.06),
+        'neck': (3.764, -0.463, -17.328), 'head': (3.924, -0.014),
+        'right_clavicle': (11.121, 5.312), 'right_shoulder': (83.615, 11.646, 2.944),
+        'right_elbow': (22.799, 14.058), 'right_wrist': (-0.405, -28.558),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (0.442, -20.0, 4.757), 'spine_thoracic': (-11.572, -8.336, 6.59),
-        'right_clavicle': (21.569, 13.146), 'right_shoulder': (87.09, 21.178, 10.95),
-        'right_elbow': (3.933, 22.158), 'right_wrist': (0.893, -11.813),
+        'spine_lumbar': (5.715, -19.944, 3.832), 'spine_thoracic': (-11.7, -10.0, 6.066),
+        'neck': (2.798, -0.464, -15.898), 'head': (2.947, -0.014),
+        'right_clavicle': (21.591, 3.586), 'right_shoulder': (82.782, 17.051, 12.596),
+        'right_elbow': (25.203, 23.481), 'right_wrist': (3.392, -22.344),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (0.929, -19.883, 4.756), 'spine_thoracic': (-11.631, -8.488, 6.609),
-        'neck': (4.801, -0.405, -14.144), 'head': (4.94, -0.014),
-        'right_clavicle': (23.374, 10.395), 'right_shoulder': (86.74, 19.476, 12.997),
-        'right_elbow': (5.317, 23.89), 'right_wrist': (0.401, -11.33),
+        'spine_lumbar': (0.931, -20.0, 4.531), 'spine_thoracic': (-11.447, -8.139, 6.413),
+        'neck': (4.684, -0.402, -13.774), 'head': (4.821, -0.014),
+        'right_clavicle': (17.652, 5.004), 'right_shoulder': (81.199, 12.334, 9.419),
+        'right_elbow': (23.386, 19.916), 'right_wrist': (2.22, -25.598),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-1.232, -18.574, 7.188), 'spine_thoracic': (-10.72, -2.794, 8.023),
-        'neck': (5.065, -0.393, -13.661), 'head': (5.201, -0.014), 'right_clavicle': (7.097, 9.826),
-        'right_shoulder': (87.442, 7.96, -3.594), 'right_elbow': (10.884, 6.912),
-        'right_wrist': (-3.578, -23.055),
+        'spine_lumbar': (1.013, -17.899, 8.988), 'spine_thoracic': (-11.196, -1.739, 9.035),
+        'neck': (4.262, -0.436, -15.816), 'head': (4.412, -0.014), 'right_clavicle': (5.238, 7.664),
+        'right_shoulder': (85.108, 7.423, -3.266), 'right_elbow': (21.495, 7.918),
+        'right_wrist': (-3.227, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
-        'spine_lumbar': (2.231, -20.0, 6.525), 'spine_thoracic': (-8.923, -5.212, 7.967),
-        'neck': (2.839, -0.475, -16.892), 'head': (2.994, -0.014), 'right_clavicle': (1.431, 8.69),
-        'right_shoulder': (88.198, 7.909, -4.22), 'right_elbow': (23.69, 7.034),
-        'right_wrist': (-3.393, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (-0.286, -19.21, 6.501), 'spine_thoracic': (-10.185, -4.359, 7.694),
-        'neck': (4.467, -0.413, -14.283), 'head': (4.607, -0.014),
-        'right_clavicle': (6.883, 12.459), 'right_shoulder': (88.458, 12.684, -2.31),
-        'right_elbow': (11.052, 9.092), 'right_wrist': (-1.724, -23.185),
+        'spine_lumbar': (2.336, -18.54, 7.945), 'spine_thoracic': (-10.379, -7.432, 7.975),
+        'neck': (3.648, -0.466, -17.386), 'head': (3.808, -0.014), 'right_clavicle': (6.114, 6.466),
+        'right_shoulder': (85.618, 9.038, -1.704), 'right_elbow': (22.319, 9.53),
+        'right_wrist': (-2.382, -29.993),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (-0.516, -20.0, 5.212), 'spine_thoracic': (-11.363, -7.065, 6.815),
-        'neck': (5.241, -0.391, -13.748), 'head': (5.377, -0.014),
-        'right_clavicle': (18.277, 14.054), 'right_shoulder': (87.406, 19.812, 7.368),
-        'right_elbow': (3.341, 18.666), 'right_wrist': (0.647, -14.481),
+        'spine_lumbar': (4.825, -20.0, 4.432), 'spine_thoracic': (-11.448, -10.0, 6.272),
+        'neck': (3.127, -0.463, -16.27), 'head': (3.279, -0.014), 'right_clavicle': (18.736, 4.066),
+        'right_shoulder': (82.78, 15.471, 10.049), 'right_elbow': (24.412, 20.979),
+        'right_wrist': (2.445, -24.428),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (1.286, -19.878, 4.814), 'spine_thoracic': (-11.68, -8.468, 6.66),
-        'neck': (4.674, -0.41, -14.395), 'head': (4.815, -0.014),
-        'right_clavicle': (23.445, 11.412), 'right_shoulder': (87.09, 20.952, 13.046),
-        'right_elbow': (4.698, 24.081), 'right_wrist': (0.637, -10.821),
+        'spine_lumbar': (5.22, -19.876, 3.762), 'spine_thoracic': (-11.727, -10.0, 6.047),
+        'neck': (3.018, -0.455, -15.472), 'head': (3.164, -0.014),
+        'right_clavicle': (21.776, 3.665), 'right_shoulder': (82.509, 16.763, 12.838),
+        'right_elbow': (25.177, 23.645), 'right_wrist': (3.485, -22.179),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-3.345, -19.736, 5.676), 'spine_thoracic': (-10.995, -5.196, 6.953),
-        'neck': (6.178, -0.353, -12.323), 'head': (6.305, -0.014),
-        'right_clavicle': (14.242, 9.368), 'right_shoulder': (85.694, 10.136, 3.296),
-        'right_elbow': (6.425, 13.735), 'right_wrist': (-1.749, -19.673),
+        'spine_lumbar': (-1.273, -18.966, 7.568), 'spine_thoracic': (-11.379, -2.599, 8.165),
+        'neck': (5.395, -0.396, -14.394), 'head': (5.536, -0.014), 'right_clavicle': (8.451, 7.078),
+        'right_shoulder': (82.495, 7.509, -0.178), 'right_elbow': (20.781, 10.686),
+        'right_wrist': (-1.847, -29.986),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.619, -19.393, 6.941), 'spine_thoracic': (-9.785, -4.161, 8.123),
-        'neck': (3.438, -0.453, -15.952), 'head': (3.588, -0.014), 'right_clavicle': (3.369, 9.257),
-        'right_shoulder': (88.329, 8.228, -4.569), 'right_elbow': (18.837, 6.419),
-        'right_wrist': (-3.639, -27.043),
+        'spine_lumbar': (2.377, -17.51, 8.893), 'spine_thoracic': (-9.794, -4.329, 8.746),
+        'neck': (3.125, -0.467, -16.637), 'head': (3.279, -0.014), 'right_clavicle': (3.643, 7.474),
+        'right_shoulder': (87.673, 7.37, -3.812), 'right_elbow': (22.259, 7.48),
+        'right_wrist': (-3.262, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (1.24, -19.483, 6.664), 'spine_thoracic': (-9.376, -4.567, 7.958),
-        'neck': (3.436, -0.45, -15.721), 'head': (3.584, -0.014), 'right_clavicle': (3.013, 10.217),
-        'right_shoulder': (88.387, 9.453, -3.912), 'right_elbow': (19.01, 7.394),
-        'right_wrist': (-2.91, -27.509),
+        'spine_lumbar': (2.42, -17.441, 8.612), 'spine_thoracic': (-9.199, -6.132, 8.383),
+        'neck': (2.937, -0.473, -16.866), 'head': (3.093, -0.014), 'right_clavicle': (3.268, 7.206),
+        'right_shoulder': (88.062, 7.241, -3.684), 'right_elbow': (22.479, 7.581),
+        'right_wrist': (-3.107, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (-0.943, -19.873, 5.716), 'spine_thoracic': (-10.982, -5.726, 7.091),
-        'neck': (5.19, -0.392, -13.764), 'head': (5.327, -0.014),
-        'right_clavicle': (13.486, 13.921), 'right_shoulder': (87.894, 17.13, 2.664),
-        'right_elbow': (4.821, 14.053), 'right_wrist': (-0.089, -18.111),
+        'spine_lumbar': (3.389, -19.935, 5.779), 'spine_thoracic': (-11.07, -9.731, 6.797),
+        'neck': (3.656, -0.462, -17.12), 'head': (3.814, -0.014), 'right_clavicle': (13.119, 4.953),
+        'right_shoulder': (83.199, 12.641, 4.835), 'right_elbow': (23.139, 15.896),
+        'right_wrist': (0.383, -27.633),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (0.76, -19.979, 4.754), 'spine_thoracic': (-11.617, -8.422, 6.596),
-        'neck': (4.869, -0.403, -14.125), 'head': (5.008, -0.014),
-        'right_clavicle': (22.337, 12.614), 'right_shoulder': (87.086, 21.169, 11.802),
-        'right_elbow': (4.222, 22.955), 'right_wrist': (0.854, -11.345),
+        'spine_lumbar': (5.797, -19.928, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
+        'neck': (2.77, -0.464, -15.864), 'head': (2.919, -0.014), 'right_clavicle': (21.848, 3.544),
+        'right_shoulder': (82.784, 17.195, 12.817), 'right_elbow': (25.269, 23.7),
+        'right_wrist': (3.475, -22.149),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (-0.129, -19.954, 4.7), 'spine_thoracic': (-11.508, -8.3, 6.532),
-        'neck': (5.181, -0.389, -13.544), 'head': (5.316, -0.014),
-        'right_clavicle': (22.361, 9.847), 'right_shoulder': (86.236, 17.44, 11.986),
-        'right_elbow': (5.681, 22.747), 'right_wrist': (0.161, -12.529),
+        'spine_lumbar': (-0.465, -19.984, 5.179), 'spine_thoracic': (-11.365, -6.727, 6.763),
+        'neck': (5.196, -0.389, -13.553), 'head': (5.331, -0.014),
+        'right_clavicle': (15.223, 5.617), 'right_shoulder': (81.08, 10.54, 7.034),
+        'right_elbow': (22.415, 17.54), 'right_wrist': (1.269, -27.416),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-0.199, -18.598, 7.276), 'spine_thoracic': (-10.586, -2.833, 8.177),
-        'neck': (4.548, -0.411, -14.262), 'head': (4.687, -0.014), 'right_clavicle': (5.848, 9.82),
-        'right_shoulder': (87.919, 8.005, -4.367), 'right_elbow': (12.817, 6.274),
-        'right_wrist': (-3.75, -23.806),
+        'spine_lumbar': (1.603, -17.771, 9.093), 'spine_thoracic': (-10.973, -2.142, 9.084),
+        'neck': (3.911, -0.446, -16.154), 'right_clavicle': (4.764, 7.685),
+        'right_shoulder': (85.847, 7.528, -3.568), 'right_elbow': (21.745, 7.675),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
-        'spine_lumbar': (2.227, -19.998, 6.525), 'spine_thoracic': (-8.925, -5.21, 7.967),
-        'neck': (2.841, -0.475, -16.888), 'head': (2.996, -0.014), 'right_clavicle': (1.437, 8.696),
-        'right_shoulder': (88.199, 7.914, -4.22), 'right_elbow': (23.673, 7.035),
-        'right_wrist': (-3.391, -29.991),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (-0.565, -19.371, 6.299), 'spine_thoracic': (-10.396, -4.653, 7.525),
-        'neck': (4.702, -0.406, -14.073), 'head': (4.84, -0.014), 'right_clavicle': (8.358, 12.882),
-        'right_shoulder': (88.36, 13.735, -1.361), 'right_elbow': (9.198, 10.055),
-        'right_wrist': (-1.3, -22.025),
+        'spine_lumbar': (2.443, -18.996, 7.462), 'spine_thoracic': (-10.594, -8.13, 7.677),
+        'neck': (3.756, -0.464, -17.446), 'head': (3.918, -0.014), 'right_clavicle': (7.537, 6.093),
+        'right_shoulder': (84.884, 9.805, -0.414), 'right_elbow': (22.396, 10.788),
+        'right_wrist': (-1.834, -29.773),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-0.215, -20.0, 5.05), 'spine_thoracic': (-11.447, -7.527, 6.736),
-        'neck': (5.17, -0.393, -13.805), 'head': (5.307, -0.014),
-        'right_clavicle': (19.562, 13.838), 'right_shoulder': (87.282, 20.408, 8.753),
-        'right_elbow': (3.394, 20.02), 'right_wrist': (0.777, -13.447),
+        'spine_lumbar': (5.232, -20.0, 4.136), 'spine_thoracic': (-11.546, -10.0, 6.158),
+        'neck': (2.97, -0.463, -16.093), 'head': (3.121, -0.014), 'right_clavicle': (20.045, 3.84),
+        'right_shoulder': (82.774, 16.191, 11.241), 'right_elbow': (24.79, 22.147),
+        'right_wrist': (2.886, -23.49),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (1.304, -19.874, 4.818), 'spine_thoracic': (-11.682, -8.468, 6.663),
-        'neck': (4.667, -0.411, -14.406), 'head': (4.808, -0.014),
-        'right_clavicle': (23.482, 11.368), 'right_shoulder': (87.091, 20.939, 13.088),
-        'right_elbow': (4.715, 24.118), 'right_wrist': (0.628, -10.806),
+        'spine_lumbar': (4.152, -19.901, 3.823), 'spine_thoracic': (-11.665, -9.832, 6.063),
+        'neck': (3.453, -0.441, -14.946), 'head': (3.596, -0.014), 'right_clavicle': (21.12, 3.934),
+        'right_shoulder': (82.091, 15.789, 12.423), 'right_elbow': (24.901, 23.106),
+        'right_wrist': (3.337, -22.663),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-3.167, -19.255, 6.265), 'spine_thoracic': (-10.898, -4.012, 7.325),
-        'neck': (6.019, -0.359, -12.512), 'head': (6.147, -0.014),
-        'right_clavicle': (11.335, 9.517), 'right_shoulder': (86.175, 8.79, 0.267),
-        'right_elbow': (7.462, 10.684), 'right_wrist': (-2.531, -21.343),
+        'spine_lumbar': (-0.614, -18.527, 8.217), 'spine_thoracic': (-11.385, -1.931, 8.575),
+        'neck': (5.084, -0.409, -14.925), 'head': (5.228, -0.014), 'right_clavicle': (6.988, 7.38),
+        'right_shoulder': (83.37, 7.345, -1.701), 'right_elbow': (20.774, 9.296),
+        'right_wrist': (-2.533, -29.999),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.955, -19.697, 6.737), 'spine_thoracic': (-9.369, -4.686, 8.049),
-        'neck': (3.13, -0.464, -16.428), 'head': (3.283, -0.014), 'right_clavicle': (2.418, 8.98),
-        'right_shoulder': (88.281, 8.095, -4.413), 'right_elbow': (21.227, 6.709),
-        'right_wrist': (-3.522, -28.489),
+        'spine_lumbar': (2.455, -17.372, 8.763), 'spine_thoracic': (-9.269, -5.173, 8.57),
+        'neck': (2.89, -0.472, -16.672), 'head': (3.044, -0.014), 'right_clavicle': (3.185, 7.393),
+        'right_shoulder': (88.241, 7.107, -3.855), 'right_elbow': (22.421, 7.425),
+        'right_wrist': (-3.201, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.512, -19.15, 6.732), 'spine_thoracic': (-9.719, -4.164, 7.935),
-        'neck': (3.89, -0.432, -14.936), 'head': (4.034, -0.014), 'right_clavicle': (4.307, 11.331),
-        'right_shoulder': (88.506, 10.667, -3.582), 'right_elbow': (15.5, 7.764),
-        'right_wrist': (-2.515, -25.632),
+        'spine_lumbar': (2.348, -17.728, 8.545), 'spine_thoracic': (-9.745, -6.354, 8.354),
+        'neck': (3.254, -0.469, -17.074), 'head': (3.411, -0.014), 'right_clavicle': (4.003, 7.046),
+        'right_shoulder': (87.168, 7.783, -3.341), 'right_elbow': (22.369, 7.924),
+        'right_wrist': (-3.023, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (-0.901, -19.959, 5.55), 'spine_thoracic': (-11.134, -6.122, 6.989),
-        'neck': (5.26, -0.39, -13.729), 'head': (5.397, -0.014), 'right_clavicle': (15.178, 14.104),
-        'right_shoulder': (87.723, 18.152, 4.226), 'right_elbow': (3.984, 15.588),
-        'right_wrist': (0.213, -16.832),
+        'spine_lumbar': (3.86, -20.0, 5.265), 'spine_thoracic': (-11.2, -9.944, 6.583),
+        'neck': (3.495, -0.462, -16.832), 'head': (3.652, -0.014),
+        'right_clavicle': (15.136, 4.627), 'right_shoulder': (82.945, 13.637, 6.728),
+        'right_elbow': (23.542, 17.739), 'right_wrist': (1.154, -26.588),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.027, -19.932, 4.773), 'spine_thoracic': (-11.65, -8.457, 6.621),
-        'neck': (4.771, -0.407, -14.253), 'head': (4.911, -0.014),
-        'right_clavicle': (22.914, 12.026), 'right_shoulder': (87.087, 21.089, 12.448),
-        'right_elbow': (4.464, 23.544), 'right_wrist': (0.754, -11.052),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
+        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
+        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-1.554, -20.0, 4.828), 'spine_thoracic': (-11.326, -7.617, 6.54),
-        'neck': (5.666, -0.371, -12.852), 'head': (5.797, -0.014),
-        'right_clavicle': (20.268, 9.506), 'right_shoulder': (85.777, 14.815, 9.788),
-        'right_elbow': (5.822, 20.412), 'right_wrist': (-0.277, -14.701),
+        'spine_lumbar': (-1.316, -19.817, 5.948), 'spine_thoracic': (-11.33, -5.173, 7.188),
+        'neck': (5.489, -0.384, -13.629), 'head': (5.625, -0.014),
+        'right_clavicle': (12.706, 6.174), 'right_shoulder': (81.213, 9.081, 4.433),
+        'right_elbow': (21.586, 15.019), 'right_wrist': (0.178, -28.895),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (0.627, -18.804, 7.284), 'spine_thoracic': (-10.392, -3.168, 8.228),
-        'neck': (4.107, -0.428, -14.934), 'head': (4.251, -0.014), 'right_clavicle': (4.928, 9.712),
-        'right_shoulder': (88.201, 8.158, -4.646), 'right_elbow': (14.768, 6.073),
-        'right_wrist': (-3.799, -24.709),
+        'spine_lumbar': (2.002, -17.702, 9.059), 'spine_thoracic': (-10.671, -2.737, 9.016),
+        'neck': (3.619, -0.454, -16.362), 'head': (3.772, -0.014), 'right_clavicle': (4.429, 7.634),
+        'right_shoulder': (86.456, 7.525, -3.68), 'right_elbow': (21.919, 7.599),
+        'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
-        'spine_lumbar': (2.137, -19.95, 6.54), 'spine_thoracic': (-8.966, -5.149, 7.967),
-        'neck': (2.895, -0.473, -16.779), 'head': (3.05, -0.014), 'right_clavicle': (1.58, 8.835),
-        'right_shoulder': (88.216, 8.055, -4.195), 'right_elbow': (23.245, 7.065),
-        'right_wrist': (-3.347, -29.764),
+        'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.749, -6.003, 8.39),
+        'neck': (2.679, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-0.785, -19.56, 6.091), 'spine_thoracic': (-10.604, -4.989, 7.36),
-        'neck': (4.91, -0.4, -13.92), 'head': (5.048, -0.014), 'right_clavicle': (9.98, 13.279),
-        'right_shoulder': (88.227, 14.852, -0.208), 'right_elbow': (7.486, 11.211),
-        'right_wrist': (-0.871, -20.79),
+        'spine_lumbar': (2.651, -19.416, 6.916), 'spine_thoracic': (-10.777, -8.795, 7.364),
+        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.213, 5.701),
+        'right_shoulder': (84.198, 10.678, 1.143), 'right_elbow': (22.546, 12.305),
+        'right_wrist': (-1.169, -29.297),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (0.113, -20.0, 4.893), 'spine_thoracic': (-11.516, -7.962, 6.658),
-        'neck': (5.079, -0.396, -13.879), 'head': (5.216, -0.014),
-        'right_clavicle': (20.658, 13.527), 'right_shoulder': (87.176, 20.86, 9.951),
-        'right_elbow': (3.621, 21.188), 'right_wrist': (0.854, -12.551),
+        'spine_lumbar': (5.529, -19.977, 3.943), 'spine_thoracic': (-11.636, -10.0, 6.097),
+        'neck': (2.863, -0.464, -15.977), 'head': (3.012, -0.014),
+        'right_clavicle': (20.999, 3.682), 'right_shoulder': (82.777, 16.72, 12.083),
+        'right_elbow': (25.048, 22.976), 'right_wrist': (3.2, -22.788),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (1.311, -19.862, 4.843), 'spine_thoracic': (-11.676, -8.42, 6.679),
-        'neck': (4.659, -0.411, -14.417), 'head': (4.8, -0.014), 'right_clavicle': (23.53, 11.019),
-        'right_shoulder': (87.05, 20.6, 13.137), 'right_elbow': (4.867, 24.12),
-        'right_wrist': (0.539, -10.934),
+        'spine_lumbar': (2.619, -19.975, 4.061), 'spine_thoracic': (-11.561, -9.235, 6.169),
+        'neck': (4.05, -0.422, -14.322), 'head': (4.19, -0.014), 'right_clavicle': (19.726, 4.4),
+        'right_shoulder': (81.599, 14.23, 11.302), 'right_elbow': (24.295, 21.867),
+        'right_wrist': (2.932, -23.843),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-2.334, -18.786, 6.803), 'spine_thoracic': (-10.817, -3.145, 7.71),
-        'neck': (5.598, -0.373, -12.967), 'head': (5.73, -0.014), 'right_clavicle': (8.921, 9.704),
-        'right_shoulder': (86.81, 8.098, -2.059), 'right_elbow': (9.017, 8.381),
-        'right_wrist': (-3.16, -22.335),
+        'spine_lumbar': (0.247, -18.115, 8.722), 'spine_thoracic': (-11.327, -1.594, 8.896),
+        'neck': (4.66, -0.423, -15.4), 'head': (4.808, -0.014), 'right_clavicle': (5.919, 7.598),
+        'right_shoulder': (84.272, 7.329, -2.694), 'right_elbow': (21.18, 8.403),
+        'right_wrist': (-2.984, -29.985),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.179, -19.939, 6.568), 'spine_thoracic': (-9.015, -5.106, 7.984),
-        'neck': (2.897, -0.473, -16.798), 'head': (3.051, -0.014), 'right_clavicle': (1.632, 8.749),
-        'right_shoulder': (88.217, 7.948, -4.26), 'right_elbow': (23.188, 6.967),
-        'right_wrist': (-3.419, -29.691),
+        'spine_lumbar': (2.481, -17.26, 8.657), 'spine_thoracic': (-8.85, -5.835, 8.426),
+        'neck': (2.718, -0.475, -16.688), 'head': (2.871, -0.014), 'right_clavicle': (2.824, 7.33),
+        'right_shoulder': (88.67, 6.883, -3.881), 'right_elbow': (22.543, 7.386),
+        'right_wrist': (-3.15, -29.993),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (0.024, -19.094, 6.711), 'spine_thoracic': (-9.987, -4.113, 7.873),
-        'neck': (4.229, -0.421, -14.574), 'head': (4.37, -0.014), 'right_clavicle': (5.629, 12.035),
-        'right_shoulder': (88.523, 11.761, -3.07), 'right_elbow': (12.887, 8.314),
-        'right_wrist': (-2.109, -24.209),
+        'spine_lumbar': (2.327, -18.107, 8.368), 'spine_thoracic': (-10.14, -6.768, 8.257),
+        'neck': (3.489, -0.468, -17.334), 'head': (3.649, -0.014), 'right_clavicle': (4.97, 6.799),
+        'right_shoulder': (86.321, 8.402, -2.72), 'right_elbow': (22.324, 8.538),
+        'right_wrist': (-2.822, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-0.755, -19.996, 5.382), 'spine_thoracic': (-11.258, -6.579, 6.899),
-        'neck': (5.275, -0.39, -13.724), 'head': (5.411, -0.014),
-        'right_clavicle': (16.789, 14.127), 'right_shoulder': (87.555, 19.049, 5.818),
-        'right_elbow': (3.483, 17.148), 'right_wrist': (0.458, -15.63),
+        'spine_lumbar': (4.348, -20.0, 4.817), 'spine_thoracic': (-11.329, -10.0, 6.416),
+        'neck': (3.311, -0.462, -16.525), 'head': (3.466, -0.014),
+        'right_clavicle': (17.052, 4.337), 'right_shoulder': (82.822, 14.591, 8.502),
+        'right_elbow': (23.975, 19.468), 'right_wrist': (1.855, -25.505),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (1.202, -19.895, 4.798), 'spine_thoracic': (-11.67, -8.467, 6.646),
-        'neck': (4.705, -0.409, -14.346), 'head': (4.846, -0.014),
-        'right_clavicle': (23.276, 11.612), 'right_shoulder': (87.089, 21.003, 12.855),
-        'right_elbow': (4.622, 23.91), 'right_wrist': (0.676, -10.891),
+        'spine_lumbar': (5.716, -19.891, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.809, -0.463, -15.783), 'head': (2.957, -0.014),
+        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.738, 17.154, 12.873),
+        'right_elbow': (25.253, 23.741), 'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-2.775, -19.993, 5.163), 'spine_thoracic': (-11.14, -6.507, 6.679),
-        'neck': (6.051, -0.357, -12.427), 'head': (6.179, -0.014),
-        'right_clavicle': (17.409, 9.367), 'right_shoulder': (85.569, 12.23, 6.709),
-        'right_elbow': (5.948, 17.22), 'right_wrist': (-0.937, -17.293),
+        'spine_lumbar': (-1.533, -19.413, 6.781), 'spine_thoracic': (-11.349, -3.731, 7.68),
+        'neck': (5.537, -0.387, -13.922), 'head': (5.675, -0.014),
+        'right_clavicle': (10.393, 6.671), 'right_shoulder': (81.737, 8.058, 1.958),
+        'right_elbow': (21.019, 12.669), 'right_wrist': (-0.898, -29.86),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (1.178, -19.081, 7.136), 'spine_thoracic': (-10.129, -3.632, 8.185),
-        'neck': (3.763, -0.441, -15.444), 'head': (3.91, -0.014), 'right_clavicle': (4.207, 9.51),
-        'right_shoulder': (88.314, 8.232, -4.625), 'right_elbow': (16.649, 6.207),
-        'right_wrist': (-3.735, -25.761),
+        'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.287, -3.484, 8.9),
+        'neck': (3.37, -0.461, -16.542), 'head': (3.524, -0.014), 'right_clavicle': (4.093, 7.555),
+        'right_shoulder': (87.044, 7.517, -3.752), 'right_elbow': (22.08, 7.543),
+        'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
-        'spine_lumbar': (1.829, -19.788, 6.588), 'spine_thoracic': (-9.107, -4.944, 7.966),
-        'neck': (3.08, -0.465, -16.41), 'head': (3.232, -0.014), 'right_clavicle': (2.067, 9.31),
-        'right_shoulder': (88.276, 8.533, -4.106), 'right_elbow': (21.793, 7.17),
-        'right_wrist': (-3.199, -28.99),
+        'spine_lumbar': (2.468, -17.281, 8.628), 'spine_thoracic': (-8.854, -6.031, 8.39),
+        'neck': (2.739, -0.475, -16.735), 'head': (2.893, -0.014), 'right_clavicle': (2.86, 7.289),
+        'right_shoulder': (88.605, 6.926, -3.842), 'right_elbow': (22.551, 7.422),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (-0.911, -19.733, 5.897), 'spine_thoracic': (-10.802, -5.349, 7.215),
-        'neck': (5.075, -0.395, -13.821), 'head': (5.212, -0.014),
-        'right_clavicle': (11.71, 13.633), 'right_shoulder': (88.069, 15.998, 1.147),
-        'right_elbow': (6.018, 12.557), 'right_wrist': (-0.459, -19.464),
+        'spine_lumbar': (2.97, -19.739, 6.346), 'spine_thoracic': (-10.932, -9.341, 7.065),
+        'neck': (3.765, -0.463, -17.331), 'head': (3.926, -0.014),
+        'right_clavicle': (11.088, 5.318), 'right_shoulder': (83.624, 11.63, 2.913),
+        'right_elbow': (22.794, 14.027), 'right_wrist': (-0.418, -28.572),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (0.437, -20.0, 4.758), 'spine_thoracic': (-11.571, -8.332, 6.591),
-        'right_clavicle': (21.555, 13.153), 'right_shoulder': (87.09, 21.176, 10.935),
-        'right_elbow': (3.928, 22.143), 'right_wrist': (0.893, -11.823),
+        'spine_lumbar': (5.713, -19.945, 3.833), 'spine_thoracic': (-11.699, -10.0, 6.067),
+        'neck': (2.799, -0.464, -15.899), 'head': (2.947, -0.014),
+        'right_clavicle': (21.584, 3.587), 'right_shoulder': (82.782, 17.047, 12.59),
+        'right_elbow': (25.201, 23.476), 'right_wrist': (3.39, -22.349),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (0.94, -19.882, 4.757), 'spine_thoracic': (-11.632, -8.488, 6.61),
-        'neck': (4.797, -0.405, -14.151), 'head': (4.936, -0.014),
-        'right_clavicle': (23.379, 10.405), 'right_shoulder': (86.746, 19.501, 13.002),
-        'right_elbow': (5.31, 23.897), 'right_wrist': (0.404, -11.319),
+        'spine_lumbar': (0.959, -20.0, 4.521), 'spine_thoracic': (-11.449, -8.161, 6.408),
+        'neck': (4.674, -0.403, -13.781), 'head': (4.81, -0.014), 'right_clavicle': (17.691, 4.994),
+        'right_shoulder': (81.205, 12.367, 9.456), 'right_elbow': (23.403, 19.954),
+        'right_wrist': (2.234, -25.566),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.251, -18.576, 7.183), 'spine_thoracic': (-10.722, -2.797, 8.019),
-        'neck': (5.074, -0.393, -13.65), 'head': (5.21, -0.014), 'right_clavicle': (7.123, 9.824),
-        'right_shoulder': (87.432, 7.961, -3.574), 'right_elbow': (10.852, 6.93),
-        'right_wrist': (-3.573, -23.044),
+        'spine_lumbar': (1.001, -17.902, 8.985), 'spine_thoracic': (-11.199, -1.734, 9.033),
+        'neck': (4.269, -0.435, -15.808), 'head': (4.419, -0.014), 'right_clavicle': (5.247, 7.664),
+        'right_shoulder': (85.095, 7.42, -3.259), 'right_elbow': (21.491, 7.924),
+        'right_wrist': (-3.224, -29.929),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
-        'spine_lumbar': (2.231, -20.0, 6.525), 'spine_thoracic': (-8.923, -5.212, 7.967),
-        'neck': (2.839, -0.475, -16.892), 'head': (2.994, -0.014), 'right_clavicle': (1.431, 8.69),
-        'right_shoulder': (88.198, 7.909, -4.22), 'right_elbow': (23.69, 7.034),
-        'right_wrist': (-3.393, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (-0.281, -19.207, 6.504), 'spine_thoracic': (-10.181, -4.355, 7.697),
-        'neck': (4.463, -0.413, -14.287), 'head': (4.603, -0.014),
-        'right_clavicle': (6.861, 12.452), 'right_shoulder': (88.459, 12.668, -2.324),
-        'right_elbow': (11.082, 9.078), 'right_wrist': (-1.731, -23.203),
+        'spine_lumbar': (2.335, -18.532, 7.953), 'spine_thoracic': (-10.375, -7.421, 7.98),
+        'neck': (3.645, -0.466, -17.385), 'head': (3.806, -0.014), 'right_clavicle': (6.092, 6.472),
+        'right_shoulder': (85.631, 9.026, -1.723), 'right_elbow': (22.319, 9.512),
+        'right_wrist': (-2.39, -29.994),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (-0.521, -20.0, 5.215), 'spine_thoracic': (-11.361, -7.057, 6.817),
-        'neck': (5.242, -0.391, -13.747), 'head': (5.378, -0.014),
-        'right_clavicle': (18.254, 14.057), 'right_shoulder': (87.408, 19.801, 7.343),
-        'right_elbow': (3.342, 18.642), 'right_wrist': (0.644, -14.499),
+        'spine_lumbar': (4.817, -20.0, 4.438), 'spine_thoracic': (-11.446, -10.0, 6.274),
+        'neck': (3.13, -0.463, -16.274), 'head': (3.282, -0.014), 'right_clavicle': (18.711, 4.07),
+        'right_shoulder': (82.78, 15.457, 10.026), 'right_elbow': (24.405, 20.956),
+        'right_wrist': (2.436, -24.445),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (1.285, -19.878, 4.814), 'spine_thoracic': (-11.68, -8.468, 6.66),
-        'neck': (4.674, -0.41, -14.395), 'head': (4.815, -0.014),
-        'right_clavicle': (23.444, 11.413), 'right_shoulder': (87.09, 20.952, 13.044),
-        'right_elbow': (4.697, 24.08), 'right_wrist': (0.637, -10.821),
+        'spine_lumbar': (5.233, -19.876, 3.762), 'spine_thoracic': (-11.728, -10.0, 6.048),
+        'neck': (3.013, -0.455, -15.479), 'head': (3.159, -0.014), 'right_clavicle': (21.78, 3.663),
+        'right_shoulder': (82.515, 16.774, 12.839), 'right_elbow': (25.179, 23.648),
+        'right_wrist': (3.485, -22.177),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-3.346, -19.742, 5.667), 'spine_thoracic': (-10.997, -5.217, 6.948),
-        'neck': (6.18, -0.353, -12.321), 'head': (6.307, -0.014), 'right_clavicle': (14.293, 9.367),
-        'right_shoulder': (85.69, 10.164, 3.35), 'right_elbow': (6.414, 13.79),
-        'right_wrist': (-1.736, -19.64),
+        'spine_lumbar': (-1.283, -18.974, 7.555), 'spine_thoracic': (-11.378, -2.615, 8.157),
+        'neck': (5.4, -0.396, -14.385), 'head': (5.541, -0.014), 'right_clavicle': (8.48, 7.072),
+        'right_shoulder': (82.48, 7.516, -0.146), 'right_elbow': (20.783, 10.715),
+        'right_wrist': (-1.832, -29.985),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.612, -19.388, 6.944), 'spine_thoracic': (-9.792, -4.152, 8.124),
-        'neck': (3.444, -0.453, -15.944), 'head': (3.594, -0.014), 'right_clavicle': (3.385, 9.261),
-        'right_shoulder': (88.329, 8.23, -4.571), 'right_elbow': (18.797, 6.414),
-        'right_wrist': (-3.641, -27.02),
+        'spine_lumbar': (2.376, -17.512, 8.895), 'spine_thoracic': (-9.802, -4.314, 8.749),
+        'neck': (3.129, -0.467, -16.636), 'head': (3.283, -0.014), 'right_clavicle': (3.651, 7.476),
+        'right_shoulder': (87.663, 7.374, -3.811), 'right_elbow': (22.256, 7.481),
+        'right_wrist': (-3.263, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (1.252, -19.489, 6.663), 'spine_thoracic': (-9.371, -4.574, 7.958),
-        'neck': (3.429, -0.451, -15.735), 'head': (3.577, -0.014),
-        'right_clavicle': (2.994, 10.199), 'right_shoulder': (88.385, 9.435, -3.916),
-        'right_elbow': (19.065, 7.389), 'right_wrist': (-2.916, -27.539),
+        'spine_lumbar': (2.421, -17.437, 8.613), 'spine_thoracic': (-9.191, -6.129, 8.384),
+        'neck': (2.933, -0.473, -16.863), 'head': (3.088, -0.014), 'right_clavicle': (3.259, 7.208),
+        'right_shoulder': (88.074, 7.234, -3.688), 'right_elbow': (22.481, 7.577),
+        'right_wrist': (-3.108, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (-0.943, -19.871, 5.719), 'spine_thoracic': (-10.98, -5.719, 7.093),
-        'neck': (5.188, -0.392, -13.765), 'head': (5.325, -0.014),
-        'right_clavicle': (13.457, 13.917), 'right_shoulder': (87.897, 17.112, 2.638),
-        'right_elbow': (4.838, 14.028), 'right_wrist': (-0.095, -18.133),
+        'spine_lumbar': (3.382, -19.933, 5.788), 'spine_thoracic': (-11.068, -9.726, 6.801),
+        'neck': (3.658, -0.462, -17.125), 'head': (3.817, -0.014),
+        'right_clavicle': (13.085, 4.958), 'right_shoulder': (83.204, 12.624, 4.803),
+        'right_elbow': (23.132, 15.865), 'right_wrist': (0.37, -27.65),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (0.755, -19.98, 4.754), 'spine_thoracic': (-11.617, -8.421, 6.595),
-        'neck': (4.871, -0.403, -14.123), 'head': (5.01, -0.014),
-        'right_clavicle': (22.325, 12.624), 'right_shoulder': (87.086, 21.17, 11.789),
-        'right_elbow': (4.218, 22.943), 'right_wrist': (0.855, -11.351),
+        'spine_lumbar': (5.796, -19.929, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
+        'neck': (2.77, -0.464, -15.865), 'head': (2.919, -0.014), 'right_clavicle': (21.846, 3.545),
+        'right_shoulder': (82.784, 17.194, 12.815), 'right_elbow': (25.269, 23.698),
+        'right_wrist': (3.474, -22.151),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (-0.107, -19.953, 4.7), 'spine_thoracic': (-11.51, -8.307, 6.532),
-        'neck': (5.173, -0.39, -13.554), 'head': (5.309, -0.014), 'right_clavicle': (22.386, 9.854),
-        'right_shoulder': (86.245, 17.48, 12.012), 'right_elbow': (5.677, 22.775),
-        'right_wrist': (0.166, -12.501),
+        'spine_lumbar': (-0.444, -19.985, 5.167), 'spine_thoracic': (-11.366, -6.753, 6.757),
+        'neck': (5.188, -0.389, -13.555), 'head': (5.324, -0.014),
+        'right_clavicle': (15.266, 5.607), 'right_shoulder': (81.079, 10.568, 7.078),
+        'right_elbow': (22.431, 17.583), 'right_wrist': (1.286, -27.387),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-0.215, -18.596, 7.276), 'spine_thoracic': (-10.589, -2.829, 8.175),
-        'neck': (4.556, -0.411, -14.25), 'head': (4.696, -0.014), 'right_clavicle': (5.865, 9.821),
-        'right_shoulder': (87.912, 8.002, -4.357), 'right_elbow': (12.785, 6.281),
-        'right_wrist': (-3.748, -23.792),
+        'spine_lumbar': (1.596, -17.773, 9.093), 'spine_thoracic': (-10.977, -2.135, 9.084),
+        'neck': (3.916, -0.446, -16.151), 'right_clavicle': (4.771, 7.685),
+        'right_shoulder': (85.836, 7.528, -3.565), 'right_elbow': (21.742, 7.677),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
-        'spine_lumbar': (2.228, -19.998, 6.525), 'spine_thoracic': (-8.925, -5.21, 7.967),
-        'neck': (2.841, -0.475, -16.888), 'head': (2.996, -0.014), 'right_clavicle': (1.436, 8.695),
-        'right_shoulder': (88.199, 7.914, -4.22), 'right_elbow': (23.674, 7.035),
-        'right_wrist': (-3.391, -29.992),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-0.561, -19.368, 6.302), 'spine_thoracic': (-10.393, -4.647, 7.528),
-        'neck': (4.698, -0.406, -14.076), 'head': (4.836, -0.014),
-        'right_clavicle': (8.332, 12.876), 'right_shoulder': (88.362, 13.717, -1.379),
-        'right_elbow': (9.228, 10.037), 'right_wrist': (-1.307, -22.045),
+        'spine_lumbar': (2.44, -18.988, 7.47), 'spine_thoracic': (-10.591, -8.119, 7.682),
+        'neck': (3.755, -0.464, -17.446), 'head': (3.916, -0.014), 'right_clavicle': (7.511, 6.1),
+        'right_shoulder': (84.896, 9.791, -0.438), 'right_elbow': (22.394, 10.765),
+        'right_wrist': (-1.844, -29.779),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-0.221, -20.0, 5.053), 'spine_thoracic': (-11.446, -7.52, 6.737),
-        'neck': (5.171, -0.393, -13.803), 'head': (5.308, -0.014),
-        'right_clavicle': (19.542, 13.842), 'right_shoulder': (87.284, 20.399, 8.731),
-        'right_elbow': (3.391, 19.999), 'right_wrist': (0.775, -13.463),
+        'spine_lumbar': (5.226, -20.0, 4.14), 'spine_thoracic': (-11.544, -10.0, 6.16),
+        'neck': (2.973, -0.463, -16.095), 'head': (3.123, -0.014),
+        'right_clavicle': (20.026, 3.843), 'right_shoulder': (82.774, 16.181, 11.224),
+        'right_elbow': (24.785, 22.13), 'right_wrist': (2.88, -23.504),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (1.304, -19.874, 4.818), 'spine_thoracic': (-11.682, -8.468, 6.663),
-        'neck': (4.667, -0.411, -14.406), 'head': (4.808, -0.014),
-        'right_clavicle': (23.482, 11.368), 'right_shoulder': (87.091, 20.94, 13.088),
-        'right_elbow': (4.715, 24.118), 'right_wrist': (0.628, -10.806),
+        'spine_lumbar': (4.175, -19.9, 3.82), 'spine_thoracic': (-11.667, -9.838, 6.063),
+        'neck': (3.443, -0.441, -14.956), 'head': (3.587, -0.014),
+        'right_clavicle': (21.138, 3.928), 'right_shoulder': (82.1, 15.811, 12.436),
+        'right_elbow': (24.909, 23.122), 'right_wrist': (3.342, -22.649),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-3.171, -19.263, 6.255), 'spine_thoracic': (-10.9, -4.028, 7.319),
-        'neck': (6.022, -0.358, -12.507), 'head': (6.151, -0.014),
-        'right_clavicle': (11.379, 9.515), 'right_shoulder': (86.167, 8.805, 0.311),
-        'right_elbow': (7.442, 10.728), 'right_wrist': (-2.52, -21.322),
+        'spine_lumbar': (-0.627, -18.535, 8.207), 'spine_thoracic': (-11.386, -1.939, 8.569),
+        'neck': (5.09, -0.408, -14.916), 'head': (5.235, -0.014), 'right_clavicle': (7.009, 7.376),
+        'right_shoulder': (83.355, 7.345, -1.681), 'right_elbow': (20.77, 9.315),
+        'right_wrist': (-2.524, -29.999),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.95, -19.692, 6.741), 'spine_thoracic': (-9.376, -4.678, 8.05),
-        'neck': (3.135, -0.464, -16.42), 'head': (3.288, -0.014), 'right_clavicle': (2.433, 8.984),
-        'right_shoulder': (88.282, 8.098, -4.416), 'right_elbow': (21.189, 6.704),
-        'right_wrist': (-3.524, -28.465),
+        'spine_lumbar': (2.454, -17.374, 8.766), 'spine_thoracic': (-9.278, -5.16, 8.572),
+        'neck': (2.894, -0.471, -16.671), 'head': (3.048, -0.014), 'right_clavicle': (3.193, 7.395),
+        'right_shoulder': (88.232, 7.111, -3.854), 'right_elbow': (22.418, 7.426),
+        'right_wrist': (-3.202, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (0.524, -19.154, 6.731), 'spine_thoracic': (-9.713, -4.169, 7.936),
-        'neck': (3.883, -0.433, -14.947), 'head': (4.027, -0.014),
-        'right_clavicle': (4.284, 11.314), 'right_shoulder': (88.505, 10.646, -3.589),
-        'right_elbow': (15.557, 7.756), 'right_wrist': (-2.522, -25.663),
+        'spine_lumbar': (2.349, -17.722, 8.547), 'spine_thoracic': (-9.736, -6.349, 8.355),
+        'neck': (3.248, -0.469, -17.069), 'head': (3.406, -0.014), 'right_clavicle': (3.988, 7.05),
+        'right_shoulder': (87.185, 7.772, -3.349), 'right_elbow': (22.371, 7.916),
+        'right_wrist': (-3.025, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (-0.903, -19.958, 5.553), 'spine_thoracic': (-11.131, -6.115, 6.991),
-        'neck': (5.26, -0.39, -13.729), 'head': (5.396, -0.014), 'right_clavicle': (15.151, 14.102),
-        'right_shoulder': (87.726, 18.135, 4.2), 'right_elbow': (3.996, 15.562),
-        'right_wrist': (0.208, -16.853),
+        'spine_lumbar': (3.852, -20.0, 5.273), 'spine_thoracic': (-11.198, -9.942, 6.586),
+        'neck': (3.498, -0.462, -16.838), 'head': (3.655, -0.014),
+        'right_clavicle': (15.102, 4.632), 'right_shoulder': (82.948, 13.62, 6.697),
+        'right_elbow': (23.535, 17.708), 'right_wrist': (1.141, -26.606),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (1.023, -19.932, 4.773), 'spine_thoracic': (-11.65, -8.456, 6.621),
-        'neck': (4.772, -0.407, -14.251), 'head': (4.912, -0.014),
-        'right_clavicle': (22.906, 12.035), 'right_shoulder': (87.087, 21.091, 12.439),
-        'right_elbow': (4.46, 23.536), 'right_wrist': (0.756, -11.056),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
+        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
+        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (-1.53, -20.0, 4.824), 'spine_thoracic': (-11.329, -7.632, 6.539),
-        'neck': (5.658, -0.371, -12.863), 'head': (5.789, -0.014), 'right_clavicle': (20.31, 9.51),
-        'right_shoulder': (85.783, 14.86, 9.833), 'right_elbow': (5.82, 20.459),
-        'right_wrist': (-0.268, -14.659),
+        'spine_lumbar': (-1.31, -19.821, 5.934), 'spine_thoracic': (-11.33, -5.198, 7.18),
+        'neck': (5.487, -0.384, -13.623), 'head': (5.623, -0.014),
+        'right_clavicle': (12.746, 6.166), 'right_shoulder': (81.209, 9.101, 4.475),
+        'right_elbow': (21.597, 15.059), 'right_wrist': (0.196, -28.876),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (0.616, -18.8, 7.285), 'spine_thoracic': (-10.396, -3.162, 8.228),
-        'neck': (4.114, -0.428, -14.924), 'head': (4.258, -0.014), 'right_clavicle': (4.942, 9.714),
-        'right_shoulder': (88.199, 8.156, -4.646), 'right_elbow': (14.736, 6.073),
-        'right_wrist': (-3.799, -24.693),
+        'spine_lumbar': (1.997, -17.703, 9.06), 'spine_thoracic': (-10.677, -2.726, 9.018),
+        'neck': (3.623, -0.454, -16.358), 'head': (3.777, -0.014), 'right_clavicle': (4.435, 7.635),
+        'right_shoulder': (86.447, 7.525, -3.679), 'right_elbow': (21.917, 7.6),
+        'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
-        'spine_lumbar': (2.14, -19.952, 6.54), 'spine_thoracic': (-8.965, -5.151, 7.967),
-        'neck': (2.894, -0.473, -16.782), 'head': (3.048, -0.014), 'right_clavicle': (1.575, 8.83),
-        'right_shoulder': (88.216, 8.05, -4.195), 'right_elbow': (23.26, 7.064),
-        'right_wrist': (-3.349, -29.771),
+        'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.748, -6.003, 8.39),
+        'neck': (2.678, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (-0.782, -19.556, 6.095), 'spine_thoracic': (-10.601, -4.984, 7.363),
-        'neck': (4.907, -0.4, -13.922), 'head': (5.045, -0.014), 'right_clavicle': (9.952, 13.272),
-        'right_shoulder': (88.229, 14.832, -0.23), 'right_elbow': (7.513, 11.19),
-        'right_wrist': (-0.878, -20.812),
+        'spine_lumbar': (2.647, -19.41, 6.926), 'spine_thoracic': (-10.775, -8.784, 7.369),
+        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.183, 5.708),
+        'right_shoulder': (84.209, 10.663, 1.115), 'right_elbow': (22.542, 12.278),
+        'right_wrist': (-1.181, -29.307),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (0.107, -20.0, 4.896), 'spine_thoracic': (-11.515, -7.954, 6.659),
-        'neck': (5.08, -0.396, -13.878), 'head': (5.218, -0.014),
-        'right_clavicle': (20.641, 13.533), 'right_shoulder': (87.178, 20.853, 9.933),
-        'right_elbow': (3.617, 21.171), 'right_wrist': (0.853, -12.565),
+        'spine_lumbar': (5.525, -19.978, 3.946), 'spine_thoracic': (-11.635, -10.0, 6.098),
+        'neck': (2.864, -0.464, -15.979), 'head': (3.014, -0.014),
+        'right_clavicle': (20.986, 3.684), 'right_shoulder': (82.776, 16.713, 12.072),
+        'right_elbow': (25.045, 22.964), 'right_wrist': (3.196, -22.798),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (1.311, -19.862, 4.843), 'spine_thoracic': (-11.677, -8.421, 6.679),
-        'neck': (4.659, -0.411, -14.417), 'head': (4.801, -0.014),
-        'right_clavicle': (23.53, 11.028), 'right_shoulder': (87.051, 20.611, 13.137),
-        'right_elbow': (4.862, 24.12), 'right_wrist': (0.542, -10.93),
+        'spine_lumbar': (2.648, -19.974, 4.054), 'spine_thoracic': (-11.563, -9.25, 6.165),
+        'neck': (4.039, -0.422, -14.332), 'head': (4.179, -0.014), 'right_clavicle': (19.757, 4.39),
+        'right_shoulder': (81.607, 14.261, 11.329), 'right_elbow': (24.308, 21.895),
+        'right_wrist': (2.942, -23.816),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-2.351, -18.792, 6.795), 'spine_thoracic': (-10.819, -3.155, 7.705),
-        'neck': (5.607, -0.373, -12.957), 'head': (5.738, -0.014), 'right_clavicle': (8.957, 9.701),
-        'right_shoulder': (86.799, 8.104, -2.028), 'right_elbow': (8.988, 8.412),
-        'right_wrist': (-3.152, -22.321),
+        'spine_lumbar': (0.233, -18.12, 8.716), 'spine_thoracic': (-11.329, -1.596, 8.892),
+        'neck': (4.667, -0.423, -15.393), 'head': (4.815, -0.014), 'right_clavicle': (5.933, 7.596),
+        'right_shoulder': (84.257, 7.329, -2.682), 'right_elbow': (21.174, 8.413),
+        'right_wrist': (-2.979, -29.985),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.176, -19.936, 6.571), 'spine_thoracic': (-9.019, -5.1, 7.985),
-        'neck': (2.9, -0.473, -16.793), 'head': (3.054, -0.014), 'right_clavicle': (1.642, 8.752),
-        'right_shoulder': (88.218, 7.95, -4.262), 'right_elbow': (23.163, 6.963),
-        'right_wrist': (-3.421, -29.676),
+        'spine_lumbar': (2.481, -17.261, 8.658), 'spine_thoracic': (-8.856, -5.827, 8.428),
+        'neck': (2.72, -0.475, -16.687), 'head': (2.873, -0.014), 'right_clavicle': (2.829, 7.331),
+        'right_shoulder': (88.664, 6.886, -3.881), 'right_elbow': (22.542, 7.386),
+        'right_wrist': (-3.151, -29.992),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (0.03, -19.093, 6.713), 'spine_thoracic': (-9.983, -4.111, 7.875),
-        'neck': (4.224, -0.421, -14.579), 'head': (4.366, -0.014),
-        'right_clavicle': (5.609, 12.026), 'right_shoulder': (88.523, 11.745, -3.081),
-        'right_elbow': (12.921, 8.303), 'right_wrist': (-2.115, -24.228),
+        'spine_lumbar': (2.327, -18.1, 8.373), 'spine_thoracic': (-10.136, -6.759, 8.26),
+        'neck': (3.486, -0.468, -17.331), 'head': (3.646, -0.014), 'right_clavicle': (4.953, 6.804),
+        'right_shoulder': (86.333, 8.392, -2.734), 'right_elbow': (22.324, 8.525),
+        'right_wrist': (-2.828, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (-0.758, -19.996, 5.385), 'spine_thoracic': (-11.257, -6.571, 6.901),
-        'neck': (5.275, -0.39, -13.724), 'head': (5.411, -0.014),
-        'right_clavicle': (16.763, 14.127), 'right_shoulder': (87.558, 19.035, 5.791),
-        'right_elbow': (3.489, 17.122), 'right_wrist': (0.455, -15.649),
+        'spine_lumbar': (4.34, -20.0, 4.824), 'spine_thoracic': (-11.327, -10.0, 6.419),
+        'neck': (3.315, -0.462, -16.53), 'head': (3.469, -0.014), 'right_clavicle': (17.022, 4.341),
+        'right_shoulder': (82.823, 14.575, 8.474), 'right_elbow': (23.968, 19.441),
+        'right_wrist': (1.844, -25.523),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (1.2, -19.896, 4.798), 'spine_thoracic': (-11.67, -8.467, 6.646),
-        'neck': (4.706, -0.409, -14.345), 'head': (4.847, -0.014),
-        'right_clavicle': (23.271, 11.618), 'right_shoulder': (87.089, 21.004, 12.85),
-        'right_elbow': (4.62, 23.906), 'right_wrist': (0.677, -10.892),
+        'spine_lumbar': (5.719, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.807, -0.463, -15.786), 'head': (2.955, -0.014),
+        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.74, 17.156, 12.873),
+        'right_elbow': (25.254, 23.741), 'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-2.759, -19.994, 5.156), 'spine_thoracic': (-11.142, -6.528, 6.675),
-        'neck': (6.046, -0.357, -12.431), 'head': (6.174, -0.014), 'right_clavicle': (17.46, 9.367),
-        'right_shoulder': (85.568, 12.27, 6.764), 'right_elbow': (5.944, 17.277),
-        'right_wrist': (-0.925, -17.25),
+        'spine_lumbar': (-1.531, -19.42, 6.767), 'spine_thoracic': (-11.349, -3.753, 7.671),
+        'neck': (5.537, -0.387, -13.917), 'head': (5.674, -0.014),
+        'right_clavicle': (10.429, 6.663), 'right_shoulder': (81.726, 8.071, 1.997),
+        'right_elbow': (21.025, 12.705), 'right_wrist': (-0.881, -29.851),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (1.17, -19.076, 7.14), 'spine_thoracic': (-10.134, -3.623, 8.186),
-        'neck': (3.769, -0.441, -15.436), 'head': (3.916, -0.014), 'right_clavicle': (4.219, 9.514),
-        'right_shoulder': (88.313, 8.231, -4.626), 'right_elbow': (16.616, 6.204),
-        'right_wrist': (-3.736, -25.742),
+        'spine_lumbar': (2.242, -17.633, 8.997), 'spine_thoracic': (-10.294, -3.471, 8.902),
+        'neck': (3.373, -0.461, -16.539), 'head': (3.527, -0.014), 'right_clavicle': (4.099, 7.556),
+        'right_shoulder': (87.034, 7.517, -3.75), 'right_elbow': (22.077, 7.544),
+        'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
-        'spine_lumbar': (1.837, -19.792, 6.586), 'spine_thoracic': (-9.103, -4.949, 7.966),
-        'neck': (3.075, -0.465, -16.419), 'head': (3.228, -0.014), 'right_clavicle': (2.055, 9.298),
-        'right_shoulder': (88.275, 8.521, -4.108), 'right_elbow': (21.828, 7.167),
-        'right_wrist': (-3.202, -29.009),
+        'spine_lumbar': (2.469, -17.279, 8.628), 'spine_thoracic': (-8.85, -6.03, 8.39),
+        'neck': (2.737, -0.475, -16.734), 'head': (2.891, -0.014), 'right_clavicle': (2.856, 7.29),
+        'right_shoulder': (88.61, 6.923, -3.843), 'right_elbow': (22.552, 7.42),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (-0.91, -19.73, 5.9), 'spine_thoracic': (-10.799, -5.342, 7.218),
-        'neck': (5.072, -0.395, -13.822), 'head': (5.209, -0.014),
-        'right_clavicle': (11.68, 13.628), 'right_shoulder': (88.071, 15.979, 1.123),
-        'right_elbow': (6.04, 12.533), 'right_wrist': (-0.466, -19.487),
+        'spine_lumbar': (2.964, -19.735, 6.356), 'spine_thoracic': (-10.93, -9.333, 7.07),
+        'neck': (3.766, -0.463, -17.333), 'head': (3.927, -0.014),
+        'right_clavicle': (11.055, 5.324), 'right_shoulder': (83.632, 11.613, 2.882),
+        'right_elbow': (22.789, 13.997), 'right_wrist': (-0.431, -28.586),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (0.431, -20.0, 4.759), 'spine_thoracic': (-11.571, -8.329, 6.591),
-        'neck': (4.983, -0.399, -13.964), 'head': (5.121, -0.014),
-        'right_clavicle': (21.541, 13.16), 'right_shoulder': (87.091, 21.174, 10.919),
-        'right_elbow': (3.923, 22.129), 'right_wrist': (0.893, -11.833),
+        'spine_lumbar': (5.711, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
+        'neck': (2.8, -0.464, -15.899), 'head': (2.948, -0.014), 'right_clavicle': (21.577, 3.588),
+        'right_shoulder': (82.781, 17.043, 12.584), 'right_elbow': (25.199, 23.47),
+        'right_wrist': (3.388, -22.355),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (0.95, -19.882, 4.758), 'spine_thoracic': (-11.633, -8.488, 6.611),
-        'neck': (4.793, -0.405, -14.157), 'head': (4.933, -0.014),
-        'right_clavicle': (23.384, 10.415), 'right_shoulder': (86.753, 19.525, 13.006),
-        'right_elbow': (5.303, 23.904), 'right_wrist': (0.406, -11.31),
+        'spine_lumbar': (0.987, -20.0, 4.512), 'spine_thoracic': (-11.45, -8.183, 6.403),
+        'neck': (4.663, -0.403, -13.789), 'head': (4.8, -0.014), 'right_clavicle': (17.73, 4.983),
+        'right_shoulder': (81.21, 12.399, 9.493), 'right_elbow': (23.42, 19.991),
+        'right_wrist': (2.249, -25.533),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-1.27, -18.578, 7.179), 'spine_thoracic': (-10.724, -2.801, 8.014),
-        'neck': (5.084, -0.393, -13.639), 'head': (5.219, -0.014), 'right_clavicle': (7.149, 9.823),
-        'right_shoulder': (87.423, 7.962, -3.554), 'right_elbow': (10.819, 6.948),
-        'right_wrist': (-3.568, -23.033),
+        'spine_lumbar': (0.989, -17.904, 8.981), 'spine_thoracic': (-11.202, -1.728, 9.031),
+        'neck': (4.275, -0.435, -15.801), 'head': (4.426, -0.014), 'right_clavicle': (5.256, 7.663),
+        'right_shoulder': (85.082, 7.417, -3.251), 'right_elbow': (21.486, 7.93),
+        'right_wrist': (-3.221, -29.931),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
-        'spine_lumbar': (2.231, -20.0, 6.525), 'spine_thoracic': (-8.923, -5.212, 7.967),
-        'neck': (2.839, -0.475, -16.892), 'head': (2.994, -0.014), 'right_clavicle': (1.431, 8.69),
-        'right_shoulder': (88.198, 7.909, -4.22), 'right_elbow': (23.69, 7.034),
-        'right_wrist': (-3.393, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (-0.276, -19.205, 6.508), 'spine_thoracic': (-10.178, -4.35, 7.7),
-        'neck': (4.459, -0.413, -14.292), 'head': (4.599, -0.014),
-        'right_clavicle': (6.838, 12.445), 'right_shoulder': (88.46, 12.651, -2.338),
-        'right_elbow': (11.113, 9.063), 'right_wrist': (-1.737, -23.221),
+        'spine_lumbar': (2.334, -18.525, 7.96), 'spine_thoracic': (-10.371, -7.409, 7.985),
+        'neck': (3.643, -0.466, -17.384), 'head': (3.803, -0.014), 'right_clavicle': (6.07, 6.478),
+        'right_shoulder': (85.643, 9.014, -1.742), 'right_elbow': (22.318, 9.493),
+        'right_wrist': (-2.399, -29.995),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (-0.525, -20.0, 5.218), 'spine_thoracic': (-11.36, -7.049, 6.818),
-        'neck': (5.243, -0.391, -13.746), 'head': (5.379, -0.014), 'right_clavicle': (18.23, 14.06),
-        'right_shoulder': (87.41, 19.789, 7.318), 'right_elbow': (3.343, 18.618),
-        'right_wrist': (0.642, -14.518),
+        'spine_lumbar': (4.809, -20.0, 4.443), 'spine_thoracic': (-11.444, -10.0, 6.277),
+        'neck': (3.133, -0.462, -16.278), 'head': (3.285, -0.014),
+        'right_clavicle': (18.686, 4.075), 'right_shoulder': (82.78, 15.443, 10.003),
+        'right_elbow': (24.398, 20.934), 'right_wrist': (2.427, -24.462),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (1.285, -19.878, 4.814), 'spine_thoracic': (-11.68, -8.468, 6.66),
-        'neck': (4.674, -0.41, -14.394), 'head': (4.815, -0.014),
-        'right_clavicle': (23.442, 11.415), 'right_shoulder': (87.09, 20.953, 13.043),
-        'right_elbow': (4.697, 24.078), 'right_wrist': (0.637, -10.822),
+        'spine_lumbar': (5.246, -19.876, 3.763), 'spine_thoracic': (-11.728, -10.0, 6.048),
+        'neck': (3.007, -0.456, -15.487), 'head': (3.154, -0.014), 'right_clavicle': (21.785, 3.66),
+        'right_shoulder': (82.521, 16.784, 12.841), 'right_elbow': (25.181, 23.651),
+        'right_wrist': (3.486, -22.175),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-3.346, -19.748, 5.658), 'spine_thoracic': (-10.999, -5.238, 6.942),
-        'neck': (6.182, -0.353, -12.318), 'head': (6.308, -0.014),
-        'right_clavicle': (14.344, 9.366), 'right_shoulder': (85.686, 10.192, 3.404),
-        'right_elbow': (6.402, 13.845), 'right_wrist': (-1.722, -19.606),
+        'spine_lumbar': (-1.293, -18.981, 7.543), 'spine_thoracic': (-11.378, -2.632, 8.149),
+        'neck': (5.405, -0.395, -14.375), 'head': (5.546, -0.014), 'right_clavicle': (8.509, 7.066),
+        'right_shoulder': (82.466, 7.523, -0.113), 'right_elbow': (20.786, 10.745),
+        'right_wrist': (-1.818, -29.985),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.606, -19.383, 6.948), 'spine_thoracic': (-9.798, -4.144, 8.126),
-        'neck': (3.449, -0.453, -15.935), 'head': (3.599, -0.014), 'right_clavicle': (3.4, 9.266),
-        'right_shoulder': (88.33, 8.231, -4.573), 'right_elbow': (18.757, 6.41),
-        'right_wrist': (-3.643, -26.996),
+        'spine_lumbar': (2.374, -17.515, 8.897), 'spine_thoracic': (-9.811, -4.3, 8.752),
+        'neck': (3.134, -0.467, -16.635), 'head': (3.288, -0.014), 'right_clavicle': (3.659, 7.477),
+        'right_shoulder': (87.653, 7.378, -3.81), 'right_elbow': (22.253, 7.482),
+        'right_wrist': (-3.264, -29.927),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (1.423, -19.576, 6.642), 'spine_thoracic': (-9.292, -4.681, 7.961),
-        'neck': (3.325, -0.455, -15.932), 'head': (3.475, -0.014), 'right_clavicle': (2.716, 9.937),
-        'right_shoulder': (88.354, 9.166, -3.976), 'right_elbow': (19.873, 7.321),
-        'right_wrist': (-3.001, -27.969),
+        'spine_lumbar': (2.424, -17.427, 8.614), 'spine_thoracic': (-9.169, -6.122, 8.384),
+        'neck': (2.92, -0.473, -16.855), 'head': (3.075, -0.014), 'right_clavicle': (3.232, 7.214),
+        'right_shoulder': (88.109, 7.214, -3.699), 'right_elbow': (22.485, 7.566),
+        'right_wrist': (-3.11, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (-0.936, -19.81, 5.8), 'spine_thoracic': (-10.9, -5.546, 7.148),
-        'neck': (5.14, -0.393, -13.787), 'head': (5.277, -0.014),
-        'right_clavicle': (12.643, 13.793), 'right_shoulder': (87.979, 16.599, 1.93),
-        'right_elbow': (5.359, 13.33), 'right_wrist': (-0.258, -18.747),
+        'spine_lumbar': (3.345, -19.922, 5.833), 'spine_thoracic': (-11.057, -9.701, 6.821),
+        'neck': (3.669, -0.462, -17.145), 'head': (3.828, -0.014),
+        'right_clavicle': (12.917, 4.987), 'right_shoulder': (83.233, 12.541, 4.644),
+        'right_elbow': (23.101, 15.711), 'right_wrist': (0.304, -27.732),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (0.539, -20.0, 4.751), 'spine_thoracic': (-11.587, -8.374, 6.587),
-        'neck': (4.947, -0.4, -14.018), 'right_clavicle': (21.816, 13.011),
-        'right_shoulder': (87.086, 21.191, 11.223), 'right_elbow': (4.022, 22.416),
-        'right_wrist': (0.895, -11.65),
+        'spine_lumbar': (5.791, -19.93, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
+        'neck': (2.772, -0.464, -15.867), 'head': (2.921, -0.014),
+        'right_clavicle': (21.829, 3.547), 'right_shoulder': (82.784, 17.184, 12.8),
+        'right_elbow': (25.264, 23.683), 'right_wrist': (3.469, -22.164),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (0.905, -19.549, 4.86), 'spine_thoracic': (-11.623, -8.427, 6.61),
-        'neck': (4.786, -0.402, -13.866), 'head': (4.923, -0.014),
-        'right_clavicle': (23.291, 10.16), 'right_shoulder': (86.7, 19.036, 13.124),
-        'right_elbow': (5.913, 23.917), 'right_wrist': (0.453, -11.528),
+        'spine_lumbar': (1.247, -18.506, 5.279), 'spine_thoracic': (-11.445, -6.228, 6.787),
+        'neck': (4.393, -0.394, -12.678), 'head': (4.522, -0.014),
+        'right_clavicle': (15.473, 5.501), 'right_shoulder': (81.453, 11.171, 9.068),
+        'right_elbow': (26.394, 19.142), 'right_wrist': (1.979, -27.249),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (3.525, -12.777, 9.916), 'spine_thoracic': (-9.924, -1.97, 9.064),
-        'neck': (2.623, -0.419, -11.792), 'head': (2.744, -0.014), 'right_clavicle': (7.261, 9.092),
-        'right_shoulder': (88.431, 7.003, 0.889), 'right_elbow': (20.575, 10.167),
-        'right_wrist': (-1.779, -23.289),
+        'spine_lumbar': (6.023, -14.503, 9.989), 'spine_thoracic': (-10.636, -0.582, 9.79),
+        'neck': (1.622, -0.465, -14.017), 'head': (1.755, -0.014), 'right_clavicle': (4.746, 8.229),
+        'right_shoulder': (86.389, 7.926, 1.316), 'right_elbow': (31.724, 11.235),
+        'right_wrist': (-1.603, -29.822),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)

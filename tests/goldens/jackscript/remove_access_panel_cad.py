@@ -650,603 +650,603 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (3.666, -13.424, 9.282), 'spine_thoracic': (-9.517, -3.312, 8.719),
-        'neck': (2.35, -0.447, -12.239), 'head': (2.478, -0.014), 'right_clavicle': (6.129, 11.26),
-        'right_shoulder': (88.601, 10.957, 2.331), 'right_elbow': (22.238, 12.306),
-        'right_wrist': (-0.251, -24.198),
+        'spine_lumbar': (6.09, -14.996, 9.1), 'spine_thoracic': (-10.051, -5.359, 8.809),
+        'neck': (1.502, -0.506, -15.437), 'head': (1.648, -0.015), 'right_clavicle': (5.139, 7.177),
+        'right_shoulder': (86.05, 8.958, 1.795), 'right_elbow': (32.61, 11.821),
+        'right_wrist': (-1.276, -29.978),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (-0.698, -18.857, 5.803), 'spine_thoracic': (-11.316, -6.497, 7.049),
-        'neck': (5.234, -0.396, -13.136), 'head': (5.371, -0.014), 'right_clavicle': (15.56, 13.92),
-        'right_shoulder': (87.577, 18.72, 7.432), 'right_elbow': (5.317, 18.481),
-        'right_wrist': (0.796, -15.905),
+        'spine_lumbar': (4.013, -19.794, 4.872), 'spine_thoracic': (-11.449, -9.911, 6.537),
+        'neck': (3.486, -0.476, -16.263), 'head': (3.643, -0.015),
+        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.994, 14.641, 8.707),
+        'right_elbow': (24.952, 19.639), 'right_wrist': (1.95, -25.526),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (0.793, -19.912, 4.671), 'spine_thoracic': (-11.848, -9.044, 6.672),
-        'neck': (4.986, -0.418, -14.29), 'head': (5.131, -0.014), 'right_clavicle': (21.7, 11.588),
-        'right_shoulder': (86.885, 20.75, 13.305), 'right_elbow': (5.261, 24.382),
-        'right_wrist': (0.942, -11.291),
+        'spine_lumbar': (5.095, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.126, -0.476, -15.702), 'head': (3.279, -0.015),
+        'right_clavicle': (22.181, 3.735), 'right_shoulder': (81.81, 17.052, 12.683),
+        'right_elbow': (25.617, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-3.208, -19.996, 5.061), 'spine_thoracic': (-11.273, -6.994, 6.72),
-        'neck': (6.302, -0.361, -12.341), 'head': (6.434, -0.014), 'right_clavicle': (16.291, 9.38),
-        'right_shoulder': (84.93, 12.223, 7.187), 'right_elbow': (7.105, 17.742),
-        'right_wrist': (-0.514, -17.925),
+        'spine_lumbar': (-2.138, -19.384, 6.907), 'spine_thoracic': (-11.434, -3.627, 7.819),
+        'neck': (5.83, -0.394, -13.903), 'head': (5.973, -0.014), 'right_clavicle': (10.353, 6.811),
+        'right_shoulder': (80.975, 7.822, 1.397), 'right_elbow': (21.252, 12.163),
+        'right_wrist': (-1.111, -29.931),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (0.634, -19.136, 7.127), 'spine_thoracic': (-10.174, -3.926, 8.281),
-        'neck': (4.045, -0.454, -15.525), 'head': (4.198, -0.014), 'right_clavicle': (3.734, 9.533),
-        'right_shoulder': (87.373, 8.209, -4.66), 'right_elbow': (17.642, 6.294),
-        'right_wrist': (-3.733, -26.336),
+        'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.314, -3.777, 8.847),
+        'neck': (3.667, -0.476, -16.615), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.529, 7.241),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
-        'spine_lumbar': (1.082, -19.741, 6.625), 'spine_thoracic': (-9.224, -5.169, 8.092),
-        'neck': (3.483, -0.477, -16.328), 'head': (3.641, -0.015), 'right_clavicle': (2.279, 9.471),
-        'right_shoulder': (87.305, 8.641, -4.326), 'right_elbow': (21.751, 6.987),
-        'right_wrist': (-3.308, -28.816),
+        'spine_lumbar': (1.857, -17.664, 8.555), 'spine_thoracic': (-9.037, -6.244, 8.322),
+        'neck': (3.126, -0.491, -16.882), 'head': (3.287, -0.015), 'right_clavicle': (3.013, 7.218),
+        'right_shoulder': (87.44, 6.875, -4.204), 'right_elbow': (23.064, 7.107),
+        'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (-1.532, -19.783, 5.882), 'spine_thoracic': (-10.919, -5.546, 7.286),
-        'neck': (5.401, -0.401, -13.748), 'head': (5.542, -0.014),
-        'right_clavicle': (11.057, 13.713), 'right_shoulder': (87.584, 16.113, 1.929),
-        'right_elbow': (6.03, 13.285), 'right_wrist': (-0.45, -19.57),
+        'spine_lumbar': (2.472, -19.864, 6.254), 'spine_thoracic': (-11.04, -9.472, 7.077),
+        'neck': (4.043, -0.476, -17.214), 'head': (4.209, -0.015),
+        'right_clavicle': (11.708, 5.324), 'right_shoulder': (82.593, 11.688, 3.067),
+        'right_elbow': (23.288, 14.197), 'right_wrist': (-0.337, -28.465),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (0.04, -20.0, 4.707), 'spine_thoracic': (-11.731, -8.706, 6.659),
-        'neck': (5.236, -0.408, -13.934), 'right_clavicle': (20.221, 13.018),
-        'right_shoulder': (87.037, 20.954, 11.803), 'right_elbow': (4.261, 22.998),
-        'right_wrist': (0.994, -11.977),
+        'spine_lumbar': (5.137, -19.943, 3.905), 'spine_thoracic': (-11.791, -10.0, 6.213),
+        'neck': (3.098, -0.478, -15.818), 'head': (3.252, -0.015), 'right_clavicle': (21.927, 3.74),
+        'right_shoulder': (81.863, 16.998, 12.463), 'right_elbow': (25.597, 23.379),
+        'right_wrist': (3.379, -22.377),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (0.378, -19.902, 4.584), 'spine_thoracic': (-11.794, -9.102, 6.599),
-        'neck': (5.132, -0.41, -13.959), 'head': (5.275, -0.014),
-        'right_clavicle': (21.783, 10.204), 'right_shoulder': (86.263, 18.872, 13.249),
-        'right_elbow': (6.394, 24.141), 'right_wrist': (0.744, -12.028),
+        'spine_lumbar': (0.058, -20.0, 4.697), 'spine_thoracic': (-11.515, -7.952, 6.598),
+        'neck': (5.081, -0.407, -13.644), 'head': (5.221, -0.014),
+        'right_clavicle': (17.524, 5.255), 'right_shoulder': (80.275, 11.902, 8.819),
+        'right_elbow': (23.532, 19.347), 'right_wrist': (2.017, -25.972),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-1.578, -18.576, 7.222), 'spine_thoracic': (-10.777, -2.968, 8.144),
-        'neck': (5.247, -0.405, -13.765), 'head': (5.389, -0.014), 'right_clavicle': (5.971, 9.9),
-        'right_shoulder': (86.691, 7.905, -3.598), 'right_elbow': (12.291, 7.008),
-        'right_wrist': (-3.502, -23.919),
+        'spine_lumbar': (0.529, -17.996, 8.985), 'spine_thoracic': (-11.244, -1.911, 9.051),
+        'neck': (4.51, -0.449, -15.86), 'head': (4.666, -0.014), 'right_clavicle': (5.337, 7.671),
+        'right_shoulder': (84.327, 7.305, -3.631), 'right_elbow': (21.868, 7.607),
+        'right_wrist': (-3.369, -29.917),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
-        'spine_lumbar': (1.568, -20.0, 6.55), 'spine_thoracic': (-8.998, -5.527, 8.095),
-        'neck': (3.196, -0.49, -16.924), 'head': (3.357, -0.015), 'right_clavicle': (1.639, 8.707),
-        'right_shoulder': (87.145, 7.882, -4.565), 'right_elbow': (24.086, 6.737),
-        'right_wrist': (-3.556, -30.0),
+        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
+        'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (-0.948, -19.249, 6.489), 'spine_thoracic': (-10.297, -4.581, 7.768),
-        'neck': (4.818, -0.421, -14.224), 'head': (4.963, -0.014), 'right_clavicle': (6.54, 12.554),
-        'right_shoulder': (87.736, 12.788, -1.935), 'right_elbow': (11.123, 9.434),
-        'right_wrist': (-1.756, -23.293),
+        'spine_lumbar': (1.766, -18.843, 7.83), 'spine_thoracic': (-10.515, -7.668, 7.918),
+        'neck': (3.99, -0.48, -17.407), 'head': (4.157, -0.015), 'right_clavicle': (6.523, 6.404),
+        'right_shoulder': (84.491, 9.036, -1.778), 'right_elbow': (22.77, 9.484),
+        'right_wrist': (-2.414, -29.974),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (-0.991, -20.0, 5.183), 'spine_thoracic': (-11.494, -7.348, 6.89),
-        'neck': (5.51, -0.398, -13.684), 'head': (5.652, -0.014),
-        'right_clavicle': (17.116, 14.007), 'right_shoulder': (87.309, 19.757, 8.379),
-        'right_elbow': (3.428, 19.651), 'right_wrist': (0.676, -14.532),
+        'spine_lumbar': (4.311, -20.0, 4.445), 'spine_thoracic': (-11.55, -10.0, 6.384),
+        'neck': (3.398, -0.476, -16.139), 'head': (3.554, -0.015),
+        'right_clavicle': (19.266, 4.171), 'right_shoulder': (81.862, 15.506, 10.1),
+        'right_elbow': (24.883, 21.052), 'right_wrist': (2.493, -24.343),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (0.917, -19.889, 4.67), 'spine_thoracic': (-11.866, -9.073, 6.677),
-        'neck': (4.942, -0.42, -14.337), 'head': (5.088, -0.014),
-        'right_clavicle': (21.917, 11.322), 'right_shoulder': (86.863, 20.68, 13.523),
-        'right_elbow': (5.441, 24.576), 'right_wrist': (0.925, -11.22),
+        'spine_lumbar': (4.487, -19.882, 3.844), 'spine_thoracic': (-11.806, -10.0, 6.197),
+        'neck': (3.38, -0.466, -15.333), 'head': (3.531, -0.015), 'right_clavicle': (22.003, 3.86),
+        'right_shoulder': (81.54, 16.568, 12.632), 'right_elbow': (25.516, 23.45),
+        'right_wrist': (3.444, -22.273),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-3.839, -19.663, 5.743), 'spine_thoracic': (-11.072, -5.257, 7.084),
-        'neck': (6.416, -0.357, -12.278), 'head': (6.547, -0.014),
-        'right_clavicle': (12.452, 9.425), 'right_shoulder': (85.014, 9.711, 2.928),
-        'right_elbow': (7.764, 13.412), 'right_wrist': (-1.599, -20.89),
+        'spine_lumbar': (-1.763, -18.946, 7.689), 'spine_thoracic': (-11.464, -2.522, 8.293),
+        'neck': (5.643, -0.405, -14.428), 'head': (5.789, -0.014), 'right_clavicle': (8.401, 7.192),
+        'right_shoulder': (81.784, 7.301, -0.757), 'right_elbow': (21.033, 10.17),
+        'right_wrist': (-2.072, -29.994),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.068, -19.465, 6.924), 'spine_thoracic': (-9.789, -4.522, 8.224),
-        'neck': (3.711, -0.469, -16.078), 'head': (3.868, -0.015), 'right_clavicle': (3.011, 9.246),
-        'right_shoulder': (87.357, 8.183, -4.659), 'right_elbow': (19.92, 6.402),
-        'right_wrist': (-3.687, -27.6),
+        'spine_lumbar': (1.788, -17.77, 8.809), 'spine_thoracic': (-9.814, -4.659, 8.67),
+        'neck': (3.427, -0.483, -16.729), 'head': (3.587, -0.015), 'right_clavicle': (3.681, 7.417),
+        'right_shoulder': (86.745, 7.212, -4.178), 'right_elbow': (22.748, 7.16),
+        'right_wrist': (-3.415, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (0.47, -19.424, 6.703), 'spine_thoracic': (-9.511, -4.736, 8.078),
-        'neck': (3.851, -0.459, -15.594), 'head': (4.004, -0.014),
-        'right_clavicle': (3.112, 10.434), 'right_shoulder': (87.506, 9.612, -3.994),
-        'right_elbow': (18.798, 7.334), 'right_wrist': (-2.988, -27.317),
+        'spine_lumbar': (1.808, -17.817, 8.537), 'spine_thoracic': (-9.418, -6.344, 8.318),
+        'neck': (3.342, -0.488, -16.992), 'head': (3.504, -0.015), 'right_clavicle': (3.494, 7.133),
+        'right_shoulder': (86.849, 7.222, -4.001), 'right_elbow': (22.957, 7.309),
+        'right_wrist': (-3.273, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (-1.536, -19.914, 5.702), 'spine_thoracic': (-11.096, -5.921, 7.163),
-        'neck': (5.501, -0.398, -13.689), 'head': (5.643, -0.014),
-        'right_clavicle': (12.674, 13.973), 'right_shoulder': (87.519, 17.201, 3.532),
-        'right_elbow': (4.838, 14.87), 'right_wrist': (-0.082, -18.233),
+        'spine_lumbar': (2.892, -19.985, 5.721), 'spine_thoracic': (-11.175, -9.807, 6.847),
+        'neck': (3.923, -0.476, -16.967), 'head': (4.087, -0.015),
+        'right_clavicle': (13.737, 4.996), 'right_shoulder': (82.221, 12.69, 4.981),
+        'right_elbow': (23.628, 16.058), 'right_wrist': (0.465, -27.531),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (0.387, -19.972, 4.683), 'spine_thoracic': (-11.788, -8.9, 6.66),
-        'neck': (5.125, -0.412, -14.111), 'head': (5.269, -0.014),
-        'right_clavicle': (20.946, 12.431), 'right_shoulder': (86.963, 20.909, 12.552),
-        'right_elbow': (4.701, 23.696), 'right_wrist': (0.983, -11.595),
+        'spine_lumbar': (5.203, -19.931, 3.867), 'spine_thoracic': (-11.815, -10.0, 6.205),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.138, 3.708),
+        'right_shoulder': (81.865, 17.118, 12.643), 'right_elbow': (25.649, 23.557),
+        'right_wrist': (3.447, -22.215),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (-0.838, -19.971, 4.579), 'spine_thoracic': (-11.638, -8.765, 6.556),
-        'neck': (5.551, -0.392, -13.305), 'head': (5.69, -0.014), 'right_clavicle': (20.592, 9.722),
-        'right_shoulder': (85.646, 16.705, 11.949), 'right_elbow': (6.796, 22.709),
-        'right_wrist': (0.496, -13.539),
+        'spine_lumbar': (-1.268, -19.968, 5.352), 'spine_thoracic': (-11.44, -6.511, 6.944),
+        'neck': (5.562, -0.394, -13.464), 'head': (5.702, -0.014), 'right_clavicle': (15.057, 5.84),
+        'right_shoulder': (80.23, 10.141, 6.368), 'right_elbow': (22.559, 16.917),
+        'right_wrist': (1.027, -27.746),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-0.591, -18.657, 7.284), 'spine_thoracic': (-10.631, -3.1, 8.284),
-        'neck': (4.754, -0.424, -14.408), 'head': (4.899, -0.014), 'right_clavicle': (4.963, 9.862),
-        'right_shoulder': (87.113, 8.002, -4.327), 'right_elbow': (14.136, 6.395),
-        'right_wrist': (-3.706, -24.619),
+        'spine_lumbar': (1.074, -17.916, 9.05), 'spine_thoracic': (-11.016, -2.349, 9.074),
+        'neck': (4.182, -0.46, -16.191), 'head': (4.34, -0.015), 'right_clavicle': (4.869, 7.676),
+        'right_shoulder': (85.019, 7.386, -3.9), 'right_elbow': (22.133, 7.393),
+        'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
-        'spine_lumbar': (1.559, -19.995, 6.551), 'spine_thoracic': (-9.002, -5.52, 8.095),
-        'neck': (3.201, -0.49, -16.913), 'head': (3.362, -0.015), 'right_clavicle': (1.65, 8.721),
-        'right_shoulder': (87.148, 7.896, -4.561), 'right_elbow': (24.043, 6.741),
-        'right_wrist': (-3.551, -29.978),
+        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
+        'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (-1.213, -19.423, 6.284), 'spine_thoracic': (-10.509, -4.87, 7.597),
-        'neck': (5.043, -0.413, -14.018), 'head': (5.187, -0.014),
-        'right_clavicle': (7.917, 12.972), 'right_shoulder': (87.7, 13.844, -0.855),
-        'right_elbow': (9.271, 10.518), 'right_wrist': (-1.315, -22.147),
+        'spine_lumbar': (1.898, -19.251, 7.349), 'spine_thoracic': (-10.716, -8.343, 7.636),
+        'neck': (4.077, -0.478, -17.425), 'head': (4.244, -0.015), 'right_clavicle': (8.012, 6.049),
+        'right_shoulder': (83.781, 9.82, -0.408), 'right_elbow': (22.865, 10.817),
+        'right_wrist': (-1.825, -29.731),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-0.661, -20.0, 5.007), 'spine_thoracic': (-11.587, -7.853, 6.805),
-        'neck': (5.433, -0.401, -13.747), 'head': (5.575, -0.014),
-        'right_clavicle': (18.32, 13.759), 'right_shoulder': (87.221, 20.305, 9.732),
-        'right_elbow': (3.558, 20.98), 'right_wrist': (0.823, -13.512),
+        'spine_lumbar': (4.697, -20.0, 4.174), 'spine_thoracic': (-11.648, -10.0, 6.288),
+        'neck': (3.252, -0.477, -15.989), 'head': (3.407, -0.015),
+        'right_clavicle': (20.512, 3.964), 'right_shoulder': (81.856, 16.202, 11.229),
+        'right_elbow': (25.235, 22.159), 'right_wrist': (2.914, -23.44),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (0.928, -19.887, 4.67), 'spine_thoracic': (-11.868, -9.075, 6.677),
-        'neck': (4.938, -0.42, -14.342), 'head': (5.084, -0.014),
-        'right_clavicle': (21.937, 11.298), 'right_shoulder': (86.861, 20.673, 13.542),
-        'right_elbow': (5.457, 24.593), 'right_wrist': (0.923, -11.213),
+        'spine_lumbar': (3.315, -19.914, 3.928), 'spine_thoracic': (-11.735, -9.779, 6.22),
+        'neck': (3.849, -0.449, -14.774), 'head': (3.997, -0.015),
+        'right_clavicle': (21.209, 4.164), 'right_shoulder': (81.108, 15.471, 12.087),
+        'right_elbow': (25.172, 22.782), 'right_wrist': (3.25, -22.876),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-3.617, -19.174, 6.345), 'spine_thoracic': (-10.967, -4.075, 7.469),
-        'neck': (6.239, -0.365, -12.515), 'head': (6.372, -0.014), 'right_clavicle': (9.739, 9.603),
-        'right_shoulder': (85.496, 8.544, 0.023), 'right_elbow': (8.874, 10.507),
-        'right_wrist': (-2.418, -22.404),
+        'spine_lumbar': (-1.073, -18.523, 8.303), 'spine_thoracic': (-11.459, -1.941, 8.674),
+        'neck': (5.319, -0.42, -14.961), 'head': (5.469, -0.014), 'right_clavicle': (7.0, 7.462),
+        'right_shoulder': (82.652, 7.192, -2.177), 'right_elbow': (21.11, 8.878),
+        'right_wrist': (-2.718, -29.998),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.362, -19.756, 6.725), 'spine_thoracic': (-9.371, -5.065, 8.157),
-        'neck': (3.425, -0.48, -16.541), 'head': (3.584, -0.015), 'right_clavicle': (2.277, 8.959),
-        'right_shoulder': (87.257, 8.038, -4.618), 'right_elbow': (22.153, 6.574),
-        'right_wrist': (-3.62, -28.879),
+        'spine_lumbar': (1.856, -17.681, 8.674), 'spine_thoracic': (-9.309, -5.505, 8.483),
+        'neck': (3.208, -0.488, -16.792), 'head': (3.369, -0.015), 'right_clavicle': (3.214, 7.326),
+        'right_shoulder': (87.263, 6.958, -4.235), 'right_elbow': (22.946, 7.09),
+        'right_wrist': (-3.371, -29.97),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (-0.232, -19.12, 6.763), 'spine_thoracic': (-9.853, -4.325, 8.042),
-        'neck': (4.29, -0.44, -14.834), 'head': (4.438, -0.014), 'right_clavicle': (4.226, 11.525),
-        'right_shoulder': (87.707, 10.827, -3.486), 'right_elbow': (15.315, 7.859),
-        'right_wrist': (-2.568, -25.536),
+        'spine_lumbar': (1.744, -18.083, 8.467), 'spine_thoracic': (-9.96, -6.566, 8.301),
+        'neck': (3.651, -0.484, -17.178), 'head': (3.815, -0.015), 'right_clavicle': (4.306, 6.974),
+        'right_shoulder': (85.957, 7.778, -3.588), 'right_elbow': (22.815, 7.717),
+        'right_wrist': (-3.154, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (-1.454, -19.991, 5.53), 'spine_thoracic': (-11.249, -6.345, 7.061),
-        'neck': (5.556, -0.397, -13.659), 'head': (5.697, -0.014),
-        'right_clavicle': (14.249, 14.123), 'right_shoulder': (87.454, 18.191, 5.193),
-        'right_elbow': (4.004, 16.509), 'right_wrist': (0.228, -16.925),
+        'spine_lumbar': (3.362, -20.0, 5.237), 'spine_thoracic': (-11.307, -9.976, 6.666),
+        'neck': (3.759, -0.475, -16.66), 'head': (3.92, -0.015), 'right_clavicle': (15.764, 4.701),
+        'right_shoulder': (82.002, 13.686, 6.873), 'right_elbow': (24.026, 17.9),
+        'right_wrist': (1.237, -26.493),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (0.668, -19.93, 4.673), 'spine_thoracic': (-11.83, -9.006, 6.666),
-        'neck': (5.029, -0.416, -14.232), 'head': (5.174, -0.014),
-        'right_clavicle': (21.473, 11.856), 'right_shoulder': (86.909, 20.811, 13.082),
-        'right_elbow': (5.089, 24.18), 'right_wrist': (0.958, -11.373),
+        'spine_lumbar': (5.212, -19.927, 3.863), 'spine_thoracic': (-11.819, -10.0, 6.205),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015),
+        'right_clavicle': (22.171, 3.703), 'right_shoulder': (81.865, 17.135, 12.671),
+        'right_elbow': (25.656, 23.583), 'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-2.309, -20.0, 4.78), 'spine_thoracic': (-11.428, -7.898, 6.601),
-        'neck': (6.03, -0.371, -12.623), 'head': (6.164, -0.014), 'right_clavicle': (18.378, 9.452),
-        'right_shoulder': (85.112, 14.086, 9.508), 'right_elbow': (6.981, 20.139),
-        'right_wrist': (0.006, -15.945),
+        'spine_lumbar': (-1.963, -19.788, 6.117), 'spine_thoracic': (-11.415, -4.978, 7.36),
+        'neck': (5.794, -0.391, -13.613), 'head': (5.935, -0.014),
+        'right_clavicle': (12.558, 6.365), 'right_shoulder': (80.412, 8.752, 3.766),
+        'right_elbow': (21.765, 14.404), 'right_wrist': (-0.074, -29.117),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (0.158, -18.87, 7.278), 'spine_thoracic': (-10.428, -3.459, 8.317),
-        'neck': (4.348, -0.442, -15.049), 'head': (4.498, -0.014), 'right_clavicle': (4.24, 9.739),
-        'right_shoulder': (87.311, 8.142, -4.595), 'right_elbow': (15.982, 6.243),
-        'right_wrist': (-3.756, -25.444),
+        'spine_lumbar': (1.449, -17.887, 9.002), 'spine_thoracic': (-10.704, -3.002, 8.98),
+        'neck': (3.901, -0.469, -16.423), 'head': (4.06, -0.015), 'right_clavicle': (4.535, 7.604),
+        'right_shoulder': (85.587, 7.389, -4.014), 'right_elbow': (22.329, 7.313),
+        'right_wrist': (-3.445, -29.891),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
-        'spine_lumbar': (1.44, -19.932, 6.571), 'spine_thoracic': (-9.057, -5.432, 8.095),
-        'neck': (3.271, -0.486, -16.767), 'head': (3.431, -0.015), 'right_clavicle': (1.807, 8.909),
-        'right_shoulder': (87.187, 8.082, -4.503), 'right_elbow': (23.47, 6.802),
-        'right_wrist': (-3.491, -29.688),
+        'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.893, -6.213, 8.323),
+        'neck': (3.046, -0.492, -16.839), 'head': (3.206, -0.015), 'right_clavicle': (2.837, 7.247),
+        'right_shoulder': (87.662, 6.746, -4.271), 'right_elbow': (23.104, 7.04),
+        'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-1.411, -19.609, 6.079), 'spine_thoracic': (-10.718, -5.194, 7.433),
-        'neck': (5.241, -0.406, -13.86), 'head': (5.383, -0.014), 'right_clavicle': (9.432, 13.364),
-        'right_shoulder': (87.647, 14.962, 0.433), 'right_elbow': (7.552, 11.802),
-        'right_wrist': (-0.873, -20.905),
+        'spine_lumbar': (2.13, -19.609, 6.815), 'spine_thoracic': (-10.889, -8.967, 7.349),
+        'neck': (4.098, -0.477, -17.369), 'head': (4.265, -0.015), 'right_clavicle': (9.749, 5.683),
+        'right_shoulder': (83.13, 10.708, 1.217), 'right_elbow': (23.028, 12.397),
+        'right_wrist': (-1.126, -29.225),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-0.313, -20.0, 4.831), 'spine_thoracic': (-11.664, -8.33, 6.716),
-        'neck': (5.339, -0.404, -13.814), 'head': (5.481, -0.014),
-        'right_clavicle': (19.348, 13.432), 'right_shoulder': (87.127, 20.726, 10.866),
-        'right_elbow': (3.855, 22.091), 'right_wrist': (0.934, -12.641),
+        'spine_lumbar': (4.972, -19.972, 4.001), 'spine_thoracic': (-11.733, -10.0, 6.238),
+        'neck': (3.155, -0.478, -15.884), 'head': (3.309, -0.015),
+        'right_clavicle': (21.399, 3.823), 'right_shoulder': (81.859, 16.7, 12.007),
+        'right_elbow': (25.465, 22.928), 'right_wrist': (3.207, -22.779),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (0.933, -19.875, 4.679), 'spine_thoracic': (-11.862, -9.062, 6.683),
-        'neck': (4.932, -0.42, -14.342), 'head': (5.078, -0.014),
-        'right_clavicle': (21.998, 10.822), 'right_shoulder': (86.729, 20.176, 13.55),
-        'right_elbow': (5.8, 24.549), 'right_wrist': (0.851, -11.444),
+        'spine_lumbar': (1.73, -19.989, 4.202), 'spine_thoracic': (-11.627, -9.099, 6.345),
+        'neck': (4.46, -0.428, -14.158), 'head': (4.604, -0.014), 'right_clavicle': (19.686, 4.653),
+        'right_shoulder': (80.631, 13.823, 10.822), 'right_elbow': (24.489, 21.405),
+        'right_wrist': (2.786, -24.172),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-2.692, -18.753, 6.865), 'spine_thoracic': (-10.879, -3.28, 7.847),
-        'neck': (5.783, -0.383, -13.053), 'head': (5.92, -0.014), 'right_clavicle': (7.559, 9.788),
-        'right_shoulder': (86.103, 7.997, -2.159), 'right_elbow': (10.453, 8.369),
-        'right_wrist': (-3.066, -23.294),
+        'spine_lumbar': (-0.219, -18.163, 8.751), 'spine_thoracic': (-11.395, -1.68, 8.945),
+        'neck': (4.902, -0.435, -15.421), 'head': (5.055, -0.014), 'right_clavicle': (5.985, 7.634),
+        'right_shoulder': (83.526, 7.179, -3.092), 'right_elbow': (21.544, 8.061),
+        'right_wrist': (-3.133, -29.985),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (1.543, -19.969, 6.572), 'spine_thoracic': (-9.045, -5.469, 8.103),
-        'neck': (3.224, -0.489, -16.876), 'head': (3.385, -0.015), 'right_clavicle': (1.719, 8.739),
-        'right_shoulder': (87.16, 7.902, -4.572), 'right_elbow': (23.843, 6.716),
-        'right_wrist': (-3.564, -29.859),
+        'spine_lumbar': (1.877, -17.613, 8.571), 'spine_thoracic': (-8.935, -6.123, 8.343),
+        'neck': (3.059, -0.492, -16.83), 'head': (3.22, -0.015), 'right_clavicle': (2.871, 7.259),
+        'right_shoulder': (87.628, 6.763, -4.272), 'right_elbow': (23.087, 7.041),
+        'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (-0.653, -19.122, 6.706), 'spine_thoracic': (-10.098, -4.346, 7.951),
-        'neck': (4.589, -0.43, -14.521), 'head': (4.735, -0.014), 'right_clavicle': (5.363, 12.133),
-        'right_shoulder': (87.734, 11.853, -2.808), 'right_elbow': (12.955, 8.553),
-        'right_wrist': (-2.159, -24.299),
+        'spine_lumbar': (1.738, -18.435, 8.259), 'spine_thoracic': (-10.29, -7.004, 8.194),
+        'neck': (3.848, -0.482, -17.386), 'head': (4.014, -0.015), 'right_clavicle': (5.311, 6.729),
+        'right_shoulder': (85.185, 8.38, -2.871), 'right_elbow': (22.768, 8.42),
+        'right_wrist': (-2.889, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-1.267, -20.0, 5.362), 'spine_thoracic': (-11.381, -6.828, 6.977),
-        'neck': (5.556, -0.396, -13.652), 'head': (5.697, -0.014),
-        'right_clavicle': (15.737, 14.125), 'right_shoulder': (87.387, 19.043, 6.828),
-        'right_elbow': (3.531, 18.123), 'right_wrist': (0.478, -15.693),
+        'spine_lumbar': (3.845, -20.0, 4.81), 'spine_thoracic': (-11.435, -10.0, 6.516),
+        'neck': (3.576, -0.475, -16.37), 'head': (3.735, -0.015), 'right_clavicle': (17.646, 4.427),
+        'right_shoulder': (81.896, 14.639, 8.611), 'right_elbow': (24.455, 19.596),
+        'right_wrist': (1.925, -25.409),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (0.842, -19.901, 4.671), 'spine_thoracic': (-11.855, -9.056, 6.673),
-        'neck': (4.968, -0.419, -14.306), 'head': (5.114, -0.014),
-        'right_clavicle': (21.785, 11.483), 'right_shoulder': (86.877, 20.724, 13.393),
-        'right_elbow': (5.335, 24.46), 'right_wrist': (0.936, -11.262),
+        'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
+        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
+        'right_elbow': (25.614, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-3.465, -19.963, 5.182), 'spine_thoracic': (-11.225, -6.644, 6.779),
-        'neck': (6.375, -0.358, -12.271), 'head': (6.506, -0.014),
-        'right_clavicle': (15.511, 9.382), 'right_shoulder': (84.932, 11.624, 6.315),
-        'right_elbow': (7.189, 16.85), 'right_wrist': (-0.724, -18.603),
+        'spine_lumbar': (-2.139, -19.371, 6.931), 'spine_thoracic': (-11.435, -3.59, 7.834),
+        'neck': (5.829, -0.394, -13.915), 'head': (5.972, -0.014),
+        'right_clavicle': (10.289, 6.823), 'right_shoulder': (80.995, 7.802, 1.327),
+        'right_elbow': (21.243, 12.098), 'right_wrist': (-1.142, -29.938),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (0.666, -19.158, 7.113), 'spine_thoracic': (-10.151, -3.966, 8.277),
-        'neck': (4.023, -0.455, -15.562), 'head': (4.176, -0.014), 'right_clavicle': (3.693, 9.515),
-        'right_shoulder': (87.375, 8.212, -4.662), 'right_elbow': (17.778, 6.299),
-        'right_wrist': (-3.731, -26.412),
+        'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.315, -3.776, 8.847),
+        'neck': (3.667, -0.476, -16.614), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.528, 7.241),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
-        'spine_lumbar': (1.091, -19.745, 6.624), 'spine_thoracic': (-9.22, -5.175, 8.092),
-        'neck': (3.478, -0.477, -16.338), 'head': (3.636, -0.015), 'right_clavicle': (2.268, 9.459),
-        'right_shoulder': (87.302, 8.629, -4.33), 'right_elbow': (21.79, 6.983),
-        'right_wrist': (-3.313, -28.836),
+        'spine_lumbar': (1.858, -17.662, 8.555), 'spine_thoracic': (-9.032, -6.243, 8.322),
+        'neck': (3.124, -0.491, -16.881), 'head': (3.285, -0.015), 'right_clavicle': (3.007, 7.218),
+        'right_shoulder': (87.447, 6.871, -4.206), 'right_elbow': (23.065, 7.105),
+        'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (-1.531, -19.78, 5.886), 'spine_thoracic': (-10.915, -5.54, 7.288),
-        'neck': (5.399, -0.401, -13.75), 'head': (5.54, -0.014), 'right_clavicle': (11.03, 13.707),
-        'right_shoulder': (87.585, 16.094, 1.903), 'right_elbow': (6.053, 13.26),
-        'right_wrist': (-0.457, -19.592),
+        'spine_lumbar': (2.465, -19.861, 6.263), 'spine_thoracic': (-11.038, -9.465, 7.081),
+        'neck': (4.045, -0.476, -17.217), 'head': (4.21, -0.015), 'right_clavicle': (11.674, 5.33),
+        'right_shoulder': (82.6, 11.671, 3.035), 'right_elbow': (23.283, 14.166),
+        'right_wrist': (-0.35, -28.479),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (0.034, -20.0, 4.708), 'spine_thoracic': (-11.73, -8.702, 6.659),
-        'neck': (5.238, -0.407, -13.93), 'right_clavicle': (20.207, 13.026),
-        'right_shoulder': (87.038, 20.954, 11.789), 'right_elbow': (4.254, 22.985),
-        'right_wrist': (0.994, -11.985),
+        'spine_lumbar': (5.135, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.213),
+        'neck': (3.099, -0.478, -15.818), 'head': (3.253, -0.015),
+        'right_clavicle': (21.921, 3.741), 'right_shoulder': (81.863, 16.995, 12.458),
+        'right_elbow': (25.596, 23.374), 'right_wrist': (3.377, -22.382),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (0.393, -19.901, 4.586), 'spine_thoracic': (-11.796, -9.105, 6.601),
-        'neck': (5.126, -0.41, -13.969), 'head': (5.269, -0.014),
-        'right_clavicle': (21.795, 10.214), 'right_shoulder': (86.273, 18.902, 13.262),
-        'right_elbow': (6.385, 24.156), 'right_wrist': (0.747, -12.011),
+        'spine_lumbar': (0.085, -20.0, 4.686), 'spine_thoracic': (-11.517, -7.974, 6.593),
+        'neck': (5.071, -0.407, -13.65), 'head': (5.212, -0.014), 'right_clavicle': (17.565, 5.245),
+        'right_shoulder': (80.28, 11.935, 8.858), 'right_elbow': (23.55, 19.386),
+        'right_wrist': (2.033, -25.94),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.596, -18.577, 7.219), 'spine_thoracic': (-10.779, -2.971, 8.141),
-        'neck': (5.256, -0.404, -13.755), 'head': (5.397, -0.014), 'right_clavicle': (5.993, 9.899),
-        'right_shoulder': (86.683, 7.906, -3.581), 'right_elbow': (12.26, 7.023),
-        'right_wrist': (-3.497, -23.909),
+        'spine_lumbar': (0.517, -17.998, 8.982), 'spine_thoracic': (-11.248, -1.905, 9.049),
+        'neck': (4.517, -0.449, -15.852), 'head': (4.673, -0.014), 'right_clavicle': (5.345, 7.671),
+        'right_shoulder': (84.314, 7.302, -3.624), 'right_elbow': (21.863, 7.613),
+        'right_wrist': (-3.366, -29.918),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
-        'spine_lumbar': (1.568, -20.0, 6.55), 'spine_thoracic': (-8.998, -5.527, 8.095),
-        'neck': (3.196, -0.49, -16.924), 'head': (3.357, -0.015), 'right_clavicle': (1.639, 8.707),
-        'right_shoulder': (87.145, 7.882, -4.565), 'right_elbow': (24.086, 6.737),
-        'right_wrist': (-3.556, -30.0),
+        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
+        'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (-0.944, -19.247, 6.492), 'spine_thoracic': (-10.294, -4.577, 7.771),
-        'neck': (4.814, -0.421, -14.229), 'head': (4.959, -0.014),
-        'right_clavicle': (6.518, 12.546), 'right_shoulder': (87.736, 12.77, -1.952),
-        'right_elbow': (11.156, 9.417), 'right_wrist': (-1.763, -23.312),
+        'spine_lumbar': (1.765, -18.836, 7.838), 'spine_thoracic': (-10.511, -7.657, 7.922),
+        'neck': (3.988, -0.48, -17.406), 'head': (4.155, -0.015), 'right_clavicle': (6.5, 6.409),
+        'right_shoulder': (84.503, 9.024, -1.799), 'right_elbow': (22.769, 9.464),
+        'right_wrist': (-2.423, -29.977),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (-0.996, -20.0, 5.186), 'spine_thoracic': (-11.492, -7.339, 6.892),
-        'neck': (5.512, -0.398, -13.684), 'head': (5.653, -0.014),
-        'right_clavicle': (17.095, 14.01), 'right_shoulder': (87.31, 19.746, 8.355),
-        'right_elbow': (3.429, 19.627), 'right_wrist': (0.673, -14.551),
+        'spine_lumbar': (4.303, -20.0, 4.451), 'spine_thoracic': (-11.549, -10.0, 6.386),
+        'neck': (3.401, -0.476, -16.143), 'head': (3.557, -0.015),
+        'right_clavicle': (19.242, 4.175), 'right_shoulder': (81.862, 15.493, 10.078),
+        'right_elbow': (24.876, 21.03), 'right_wrist': (2.484, -24.36),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (0.916, -19.889, 4.67), 'spine_thoracic': (-11.866, -9.073, 6.677),
-        'neck': (4.942, -0.42, -14.337), 'head': (5.088, -0.014),
-        'right_clavicle': (21.916, 11.323), 'right_shoulder': (86.863, 20.681, 13.522),
-        'right_elbow': (5.44, 24.575), 'right_wrist': (0.925, -11.22),
+        'spine_lumbar': (4.5, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
+        'neck': (3.374, -0.466, -15.34), 'head': (3.525, -0.015), 'right_clavicle': (22.008, 3.857),
+        'right_shoulder': (81.546, 16.579, 12.634), 'right_elbow': (25.518, 23.454),
+        'right_wrist': (3.445, -22.271),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-3.841, -19.67, 5.733), 'spine_thoracic': (-11.074, -5.279, 7.078),
-        'neck': (6.418, -0.357, -12.276), 'head': (6.55, -0.014), 'right_clavicle': (12.502, 9.423),
-        'right_shoulder': (85.008, 9.737, 2.982), 'right_elbow': (7.75, 13.467),
-        'right_wrist': (-1.584, -20.858),
+        'spine_lumbar': (-1.774, -18.953, 7.677), 'spine_thoracic': (-11.463, -2.536, 8.286),
+        'neck': (5.647, -0.405, -14.419), 'head': (5.794, -0.014), 'right_clavicle': (8.429, 7.186),
+        'right_shoulder': (81.769, 7.306, -0.727), 'right_elbow': (21.035, 10.198),
+        'right_wrist': (-2.059, -29.994),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.062, -19.46, 6.927), 'spine_thoracic': (-9.796, -4.512, 8.225),
-        'neck': (3.717, -0.468, -16.07), 'head': (3.873, -0.015), 'right_clavicle': (3.023, 9.251),
-        'right_shoulder': (87.358, 8.185, -4.659), 'right_elbow': (19.882, 6.4),
-        'right_wrist': (-3.688, -27.578),
+        'spine_lumbar': (1.786, -17.772, 8.812), 'spine_thoracic': (-9.822, -4.644, 8.673),
+        'neck': (3.431, -0.483, -16.727), 'head': (3.591, -0.015), 'right_clavicle': (3.689, 7.419),
+        'right_shoulder': (86.735, 7.216, -4.177), 'right_elbow': (22.745, 7.161),
+        'right_wrist': (-3.416, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (0.482, -19.43, 6.702), 'spine_thoracic': (-9.505, -4.744, 8.078),
-        'neck': (3.844, -0.46, -15.608), 'head': (3.997, -0.014), 'right_clavicle': (3.095, 10.416),
-        'right_shoulder': (87.502, 9.592, -4.001), 'right_elbow': (18.856, 7.326),
-        'right_wrist': (-2.995, -27.347),
+        'spine_lumbar': (1.809, -17.814, 8.537), 'spine_thoracic': (-9.41, -6.342, 8.318),
+        'neck': (3.338, -0.488, -16.989), 'head': (3.5, -0.015), 'right_clavicle': (3.483, 7.135),
+        'right_shoulder': (86.862, 7.214, -4.005), 'right_elbow': (22.96, 7.304),
+        'right_wrist': (-3.274, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (-1.536, -19.912, 5.705), 'spine_thoracic': (-11.093, -5.915, 7.165),
-        'neck': (5.5, -0.398, -13.69), 'head': (5.641, -0.014), 'right_clavicle': (12.647, 13.97),
-        'right_shoulder': (87.521, 17.184, 3.505), 'right_elbow': (4.855, 14.843),
-        'right_wrist': (-0.087, -18.256),
+        'spine_lumbar': (2.884, -19.985, 5.73), 'spine_thoracic': (-11.173, -9.802, 6.851),
+        'neck': (3.926, -0.476, -16.972), 'head': (4.089, -0.015),
+        'right_clavicle': (13.702, 5.002), 'right_shoulder': (82.226, 12.673, 4.948),
+        'right_elbow': (23.622, 16.026), 'right_wrist': (0.451, -27.548),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (0.381, -19.973, 4.684), 'spine_thoracic': (-11.787, -8.897, 6.66),
-        'neck': (5.127, -0.412, -14.109), 'head': (5.271, -0.014),
-        'right_clavicle': (20.936, 12.442), 'right_shoulder': (86.964, 20.911, 12.541),
-        'right_elbow': (4.694, 23.686), 'right_wrist': (0.983, -11.6),
+        'spine_lumbar': (5.202, -19.931, 3.868), 'spine_thoracic': (-11.814, -10.0, 6.205),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.137, 3.708),
+        'right_shoulder': (81.865, 17.117, 12.642), 'right_elbow': (25.649, 23.556),
+        'right_wrist': (3.447, -22.216),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (-0.814, -19.97, 4.577), 'spine_thoracic': (-11.642, -8.776, 6.556),
-        'neck': (5.543, -0.392, -13.316), 'head': (5.682, -0.014),
-        'right_clavicle': (20.622, 9.728), 'right_shoulder': (85.657, 16.748, 11.982),
-        'right_elbow': (6.792, 22.744), 'right_wrist': (0.502, -13.504),
+        'spine_lumbar': (-1.248, -19.97, 5.34), 'spine_thoracic': (-11.441, -6.538, 6.937),
+        'neck': (5.555, -0.394, -13.466), 'head': (5.695, -0.014), 'right_clavicle': (15.101, 5.83),
+        'right_shoulder': (80.228, 10.169, 6.413), 'right_elbow': (22.575, 16.961),
+        'right_wrist': (1.046, -27.717),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-0.607, -18.653, 7.284), 'spine_thoracic': (-10.634, -3.094, 8.283),
-        'neck': (4.762, -0.424, -14.396), 'head': (4.907, -0.014), 'right_clavicle': (4.977, 9.864),
-        'right_shoulder': (87.107, 7.999, -4.318), 'right_elbow': (14.105, 6.402),
-        'right_wrist': (-3.703, -24.606),
+        'spine_lumbar': (1.066, -17.917, 9.05), 'spine_thoracic': (-11.02, -2.34, 9.074),
+        'neck': (4.187, -0.46, -16.187), 'head': (4.344, -0.015), 'right_clavicle': (4.875, 7.677),
+        'right_shoulder': (85.009, 7.385, -3.897), 'right_elbow': (22.129, 7.395),
+        'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
-        'spine_lumbar': (1.559, -19.996, 6.551), 'spine_thoracic': (-9.002, -5.521, 8.095),
-        'neck': (3.201, -0.49, -16.914), 'head': (3.362, -0.015), 'right_clavicle': (1.649, 8.72),
-        'right_shoulder': (87.148, 7.895, -4.561), 'right_elbow': (24.046, 6.741),
-        'right_wrist': (-3.552, -29.98),
+        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
+        'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-1.209, -19.42, 6.288), 'spine_thoracic': (-10.506, -4.865, 7.6),
-        'neck': (5.04, -0.413, -14.021), 'head': (5.183, -0.014), 'right_clavicle': (7.893, 12.966),
-        'right_shoulder': (87.7, 13.826, -0.875), 'right_elbow': (9.301, 10.498),
-        'right_wrist': (-1.323, -22.167),
+        'spine_lumbar': (1.895, -19.244, 7.358), 'spine_thoracic': (-10.713, -8.332, 7.641),
+        'neck': (4.076, -0.478, -17.425), 'head': (4.243, -0.015), 'right_clavicle': (7.985, 6.055),
+        'right_shoulder': (83.792, 9.806, -0.434), 'right_elbow': (22.863, 10.792),
+        'right_wrist': (-1.836, -29.738),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-0.667, -20.0, 5.01), 'spine_thoracic': (-11.585, -7.844, 6.807),
-        'neck': (5.434, -0.4, -13.746), 'head': (5.576, -0.014), 'right_clavicle': (18.301, 13.765),
-        'right_shoulder': (87.222, 20.297, 9.711), 'right_elbow': (3.553, 20.96),
-        'right_wrist': (0.821, -13.528),
+        'spine_lumbar': (4.692, -20.0, 4.178), 'spine_thoracic': (-11.646, -10.0, 6.289),
+        'neck': (3.254, -0.477, -15.99), 'head': (3.409, -0.015), 'right_clavicle': (20.494, 3.967),
+        'right_shoulder': (81.856, 16.192, 11.213), 'right_elbow': (25.23, 22.143),
+        'right_wrist': (2.908, -23.453),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (0.928, -19.887, 4.67), 'spine_thoracic': (-11.868, -9.075, 6.677),
-        'neck': (4.938, -0.42, -14.342), 'head': (5.084, -0.014),
-        'right_clavicle': (21.937, 11.298), 'right_shoulder': (86.861, 20.673, 13.542),
-        'right_elbow': (5.457, 24.593), 'right_wrist': (0.923, -11.213),
+        'spine_lumbar': (3.339, -19.913, 3.926), 'spine_thoracic': (-11.736, -9.785, 6.219),
+        'neck': (3.84, -0.449, -14.784), 'head': (3.988, -0.015), 'right_clavicle': (21.228, 4.157),
+        'right_shoulder': (81.115, 15.494, 12.102), 'right_elbow': (25.18, 22.798),
+        'right_wrist': (3.255, -22.861),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-3.627, -19.182, 6.335), 'spine_thoracic': (-10.969, -4.093, 7.462),
-        'neck': (6.245, -0.364, -12.509), 'head': (6.378, -0.014), 'right_clavicle': (9.78, 9.6),
-        'right_shoulder': (85.487, 8.559, 0.066), 'right_elbow': (8.851, 10.55),
-        'right_wrist': (-2.405, -22.385),
+        'spine_lumbar': (-1.087, -18.53, 8.294), 'spine_thoracic': (-11.459, -1.948, 8.668),
+        'neck': (5.326, -0.419, -14.953), 'head': (5.476, -0.014), 'right_clavicle': (7.02, 7.458),
+        'right_shoulder': (82.637, 7.192, -2.158), 'right_elbow': (21.104, 8.896),
+        'right_wrist': (-2.709, -29.998),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.358, -19.751, 6.728), 'spine_thoracic': (-9.378, -5.056, 8.158),
-        'neck': (3.429, -0.48, -16.534), 'head': (3.588, -0.015), 'right_clavicle': (2.289, 8.964),
-        'right_shoulder': (87.259, 8.041, -4.619), 'right_elbow': (22.118, 6.571),
-        'right_wrist': (-3.621, -28.859),
+        'spine_lumbar': (1.855, -17.682, 8.676), 'spine_thoracic': (-9.317, -5.492, 8.486),
+        'neck': (3.211, -0.488, -16.791), 'head': (3.372, -0.015), 'right_clavicle': (3.221, 7.327),
+        'right_shoulder': (87.255, 6.963, -4.235), 'right_elbow': (22.943, 7.091),
+        'right_wrist': (-3.372, -29.969),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (-0.222, -19.123, 6.762), 'spine_thoracic': (-9.848, -4.329, 8.043),
-        'neck': (4.283, -0.44, -14.844), 'head': (4.431, -0.014), 'right_clavicle': (4.206, 11.51),
-        'right_shoulder': (87.705, 10.807, -3.496), 'right_elbow': (15.368, 7.849),
-        'right_wrist': (-2.576, -25.564),
+        'spine_lumbar': (1.745, -18.077, 8.469), 'spine_thoracic': (-9.952, -6.561, 8.302),
+        'neck': (3.646, -0.484, -17.174), 'head': (3.81, -0.015), 'right_clavicle': (4.29, 6.977),
+        'right_shoulder': (85.972, 7.768, -3.597), 'right_elbow': (22.817, 7.708),
+        'right_wrist': (-3.157, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (-1.457, -19.99, 5.533), 'spine_thoracic': (-11.247, -6.338, 7.063),
-        'neck': (5.555, -0.397, -13.66), 'head': (5.696, -0.014),
-        'right_clavicle': (14.223, 14.122), 'right_shoulder': (87.455, 18.176, 5.165),
-        'right_elbow': (4.014, 16.482), 'right_wrist': (0.223, -16.947),
+        'spine_lumbar': (3.353, -20.0, 5.245), 'spine_thoracic': (-11.305, -9.974, 6.669),
+        'neck': (3.762, -0.475, -16.666), 'head': (3.923, -0.015),
+        'right_clavicle': (15.731, 4.706), 'right_shoulder': (82.004, 13.67, 6.842),
+        'right_elbow': (24.019, 17.869), 'right_wrist': (1.225, -26.511),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (0.664, -19.93, 4.673), 'spine_thoracic': (-11.829, -9.005, 6.666),
-        'neck': (5.031, -0.416, -14.231), 'head': (5.176, -0.014),
-        'right_clavicle': (21.466, 11.865), 'right_shoulder': (86.91, 20.813, 13.075),
-        'right_elbow': (5.084, 24.173), 'right_wrist': (0.959, -11.375),
+        'spine_lumbar': (5.212, -19.928, 3.862), 'spine_thoracic': (-11.819, -10.0, 6.204),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015), 'right_clavicle': (22.17, 3.703),
+        'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
+        'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (-2.284, -20.0, 4.775), 'spine_thoracic': (-11.431, -7.916, 6.599),
-        'neck': (6.022, -0.371, -12.633), 'head': (6.156, -0.014),
-        'right_clavicle': (18.423, 9.455), 'right_shoulder': (85.12, 14.131, 9.558),
-        'right_elbow': (6.978, 20.191), 'right_wrist': (0.017, -15.9),
+        'spine_lumbar': (-1.958, -19.793, 6.103), 'spine_thoracic': (-11.415, -5.003, 7.352),
+        'neck': (5.793, -0.39, -13.608), 'head': (5.934, -0.014), 'right_clavicle': (12.599, 6.356),
+        'right_shoulder': (80.406, 8.772, 3.809), 'right_elbow': (21.777, 14.446),
+        'right_wrist': (-0.055, -29.098),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (0.148, -18.866, 7.279), 'spine_thoracic': (-10.432, -3.452, 8.317),
-        'neck': (4.354, -0.442, -15.039), 'head': (4.504, -0.014), 'right_clavicle': (4.25, 9.742),
-        'right_shoulder': (87.309, 8.14, -4.593), 'right_elbow': (15.952, 6.243),
-        'right_wrist': (-3.756, -25.429),
+        'spine_lumbar': (1.444, -17.888, 9.004), 'spine_thoracic': (-10.71, -2.99, 8.982),
+        'neck': (3.905, -0.469, -16.419), 'head': (4.065, -0.015), 'right_clavicle': (4.54, 7.605),
+        'right_shoulder': (85.578, 7.389, -4.012), 'right_elbow': (22.326, 7.314),
+        'right_wrist': (-3.445, -29.89),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
-        'spine_lumbar': (1.443, -19.934, 6.57), 'spine_thoracic': (-9.056, -5.435, 8.095),
-        'neck': (3.269, -0.487, -16.771), 'head': (3.429, -0.015), 'right_clavicle': (1.802, 8.903),
-        'right_shoulder': (87.186, 8.077, -4.505), 'right_elbow': (23.487, 6.8),
-        'right_wrist': (-3.493, -29.697),
+        'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.892, -6.213, 8.323),
+        'neck': (3.045, -0.492, -16.839), 'head': (3.205, -0.015), 'right_clavicle': (2.836, 7.247),
+        'right_shoulder': (87.663, 6.745, -4.272), 'right_elbow': (23.104, 7.039),
+        'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (-1.409, -19.606, 6.083), 'spine_thoracic': (-10.715, -5.188, 7.436),
-        'neck': (5.238, -0.406, -13.862), 'head': (5.38, -0.014), 'right_clavicle': (9.406, 13.358),
-        'right_shoulder': (87.648, 14.943, 0.41), 'right_elbow': (7.58, 11.778),
-        'right_wrist': (-0.881, -20.926),
+        'spine_lumbar': (2.125, -19.603, 6.824), 'spine_thoracic': (-10.886, -8.958, 7.354),
+        'neck': (4.098, -0.477, -17.37), 'head': (4.265, -0.015), 'right_clavicle': (9.718, 5.689),
+        'right_shoulder': (83.14, 10.693, 1.187), 'right_elbow': (23.025, 12.369),
+        'right_wrist': (-1.138, -29.235),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (-0.318, -20.0, 4.834), 'spine_thoracic': (-11.663, -8.322, 6.718),
-        'neck': (5.341, -0.404, -13.813), 'head': (5.483, -0.014),
-        'right_clavicle': (19.332, 13.438), 'right_shoulder': (87.129, 20.719, 10.849),
-        'right_elbow': (3.849, 22.075), 'right_wrist': (0.933, -12.655),
+        'spine_lumbar': (4.968, -19.973, 4.003), 'spine_thoracic': (-11.732, -10.0, 6.238),
+        'neck': (3.156, -0.478, -15.885), 'head': (3.311, -0.015),
+        'right_clavicle': (21.387, 3.825), 'right_shoulder': (81.859, 16.693, 11.997),
+        'right_elbow': (25.462, 22.917), 'right_wrist': (3.203, -22.788),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (0.936, -19.875, 4.68), 'spine_thoracic': (-11.863, -9.061, 6.684),
-        'neck': (4.931, -0.42, -14.345), 'head': (5.077, -0.014),
-        'right_clavicle': (21.999, 10.831), 'right_shoulder': (86.734, 20.19, 13.551),
-        'right_elbow': (5.791, 24.551), 'right_wrist': (0.852, -11.438),
+        'spine_lumbar': (1.759, -19.988, 4.195), 'spine_thoracic': (-11.629, -9.116, 6.341),
+        'neck': (4.449, -0.428, -14.167), 'head': (4.593, -0.014),
+        'right_clavicle': (19.718, 4.644), 'right_shoulder': (80.639, 13.855, 10.85),
+        'right_elbow': (24.503, 21.434), 'right_wrist': (2.796, -24.144),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-2.708, -18.757, 6.858), 'spine_thoracic': (-10.88, -3.287, 7.841),
-        'neck': (5.791, -0.382, -13.042), 'head': (5.928, -0.014), 'right_clavicle': (7.59, 9.786),
-        'right_shoulder': (86.094, 8.0, -2.131), 'right_elbow': (10.425, 8.396),
-        'right_wrist': (-3.057, -23.282),
+        'spine_lumbar': (-0.232, -18.167, 8.746), 'spine_thoracic': (-11.396, -1.681, 8.942),
+        'neck': (4.909, -0.435, -15.415), 'head': (5.062, -0.014), 'right_clavicle': (5.999, 7.633),
+        'right_shoulder': (83.513, 7.179, -3.081), 'right_elbow': (21.538, 8.07),
+        'right_wrist': (-3.128, -29.985),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (1.542, -19.967, 6.573), 'spine_thoracic': (-9.049, -5.464, 8.104),
-        'neck': (3.226, -0.489, -16.873), 'head': (3.387, -0.015), 'right_clavicle': (1.725, 8.742),
-        'right_shoulder': (87.161, 7.904, -4.573), 'right_elbow': (23.823, 6.714),
-        'right_wrist': (-3.565, -29.848),
+        'spine_lumbar': (1.877, -17.614, 8.572), 'spine_thoracic': (-8.939, -6.116, 8.344),
+        'neck': (3.061, -0.492, -16.83), 'head': (3.221, -0.015), 'right_clavicle': (2.875, 7.26),
+        'right_shoulder': (87.624, 6.765, -4.271), 'right_elbow': (23.085, 7.042),
+        'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (-0.648, -19.121, 6.708), 'spine_thoracic': (-10.095, -4.343, 7.953),
-        'neck': (4.585, -0.43, -14.526), 'head': (4.731, -0.014), 'right_clavicle': (5.344, 12.125),
-        'right_shoulder': (87.734, 11.838, -2.82), 'right_elbow': (12.987, 8.54),
-        'right_wrist': (-2.166, -24.316),
+        'spine_lumbar': (1.738, -18.428, 8.265), 'spine_thoracic': (-10.286, -6.994, 8.198),
+        'neck': (3.846, -0.482, -17.385), 'head': (4.012, -0.015), 'right_clavicle': (5.293, 6.734),
+        'right_shoulder': (85.196, 8.37, -2.886), 'right_elbow': (22.768, 8.405),
+        'right_wrist': (-2.896, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (-1.271, -20.0, 5.364), 'spine_thoracic': (-11.379, -6.82, 6.978),
-        'neck': (5.556, -0.396, -13.652), 'head': (5.697, -0.014),
-        'right_clavicle': (15.713, 14.125), 'right_shoulder': (87.388, 19.03, 6.801),
-        'right_elbow': (3.535, 18.096), 'right_wrist': (0.474, -15.713),
+        'spine_lumbar': (3.837, -20.0, 4.816), 'spine_thoracic': (-11.433, -10.0, 6.519),
+        'neck': (3.579, -0.475, -16.375), 'head': (3.738, -0.015),
+        'right_clavicle': (17.616, 4.432), 'right_shoulder': (81.897, 14.624, 8.584),
+        'right_elbow': (24.448, 19.57), 'right_wrist': (1.914, -25.427),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (0.84, -19.901, 4.671), 'spine_thoracic': (-11.855, -9.055, 6.673),
-        'neck': (4.969, -0.418, -14.305), 'head': (5.115, -0.014),
-        'right_clavicle': (21.782, 11.488), 'right_shoulder': (86.877, 20.725, 13.389),
-        'right_elbow': (5.333, 24.456), 'right_wrist': (0.936, -11.263),
+        'spine_lumbar': (5.086, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.13, -0.476, -15.697), 'head': (3.283, -0.015), 'right_clavicle': (22.181, 3.737),
+        'right_shoulder': (81.806, 17.045, 12.683), 'right_elbow': (25.615, 23.582),
+        'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-3.449, -19.966, 5.174), 'spine_thoracic': (-11.228, -6.668, 6.774),
-        'neck': (6.37, -0.358, -12.276), 'head': (6.502, -0.014), 'right_clavicle': (15.562, 9.382),
-        'right_shoulder': (84.932, 11.662, 6.373), 'right_elbow': (7.183, 16.909),
-        'right_wrist': (-0.71, -18.559),
+        'spine_lumbar': (-2.139, -19.378, 6.918), 'spine_thoracic': (-11.435, -3.61, 7.826),
+        'neck': (5.83, -0.394, -13.909), 'head': (5.972, -0.014), 'right_clavicle': (10.324, 6.817),
+        'right_shoulder': (80.984, 7.813, 1.365), 'right_elbow': (21.248, 12.133),
+        'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (0.658, -19.153, 7.116), 'spine_thoracic': (-10.157, -3.956, 8.278),
-        'neck': (4.028, -0.455, -15.553), 'head': (4.181, -0.014), 'right_clavicle': (3.702, 9.519),
-        'right_shoulder': (87.375, 8.211, -4.661), 'right_elbow': (17.746, 6.298),
-        'right_wrist': (-3.731, -26.394),
+        'spine_lumbar': (1.66, -17.85, 8.931), 'spine_thoracic': (-10.322, -3.762, 8.85),
+        'neck': (3.671, -0.476, -16.612), 'head': (3.831, -0.015), 'right_clavicle': (4.17, 7.514),
+        'right_shoulder': (86.144, 7.386, -4.099), 'right_elbow': (22.525, 7.242),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
-        'spine_lumbar': (1.099, -19.75, 6.623), 'spine_thoracic': (-9.216, -5.181, 8.092),
-        'neck': (3.473, -0.477, -16.348), 'head': (3.631, -0.015), 'right_clavicle': (2.257, 9.446),
-        'right_shoulder': (87.299, 8.616, -4.334), 'right_elbow': (21.829, 6.979),
-        'right_wrist': (-3.317, -28.856),
+        'spine_lumbar': (1.859, -17.66, 8.555), 'spine_thoracic': (-9.028, -6.242, 8.322),
+        'neck': (3.122, -0.491, -16.879), 'head': (3.282, -0.015), 'right_clavicle': (3.002, 7.219),
+        'right_shoulder': (87.453, 6.867, -4.208), 'right_elbow': (23.066, 7.103),
+        'right_wrist': (-3.32, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (-1.53, -19.777, 5.889), 'spine_thoracic': (-10.912, -5.534, 7.29),
-        'neck': (5.397, -0.401, -13.751), 'head': (5.538, -0.014),
-        'right_clavicle': (11.003, 13.702), 'right_shoulder': (87.586, 16.075, 1.877),
-        'right_elbow': (6.076, 13.234), 'right_wrist': (-0.464, -19.615),
+        'spine_lumbar': (2.459, -19.858, 6.273), 'spine_thoracic': (-11.035, -9.458, 7.085),
+        'neck': (4.046, -0.476, -17.221), 'head': (4.212, -0.015),
+        'right_clavicle': (11.641, 5.336), 'right_shoulder': (82.608, 11.655, 3.004),
+        'right_elbow': (23.278, 14.135), 'right_wrist': (-0.363, -28.493),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (0.028, -20.0, 4.709), 'spine_thoracic': (-11.728, -8.698, 6.659),
-        'neck': (5.24, -0.407, -13.927), 'right_clavicle': (20.194, 13.033),
-        'right_shoulder': (87.04, 20.953, 11.774), 'right_elbow': (4.247, 22.971),
-        'right_wrist': (0.994, -11.993),
+        'spine_lumbar': (5.133, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
+        'neck': (3.1, -0.478, -15.819), 'head': (3.253, -0.015), 'right_clavicle': (21.915, 3.742),
+        'right_shoulder': (81.863, 16.992, 12.453), 'right_elbow': (25.594, 23.368),
+        'right_wrist': (3.375, -22.387),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (0.409, -19.9, 4.587), 'spine_thoracic': (-11.798, -9.107, 6.602),
-        'neck': (5.121, -0.411, -13.978), 'head': (5.264, -0.014),
-        'right_clavicle': (21.806, 10.223), 'right_shoulder': (86.282, 18.932, 13.275),
-        'right_elbow': (6.375, 24.17), 'right_wrist': (0.75, -11.994),
+        'spine_lumbar': (0.112, -20.0, 4.676), 'spine_thoracic': (-11.519, -7.997, 6.588),
+        'neck': (5.061, -0.408, -13.656), 'head': (5.202, -0.014),
+        'right_clavicle': (17.605, 5.234), 'right_shoulder': (80.284, 11.967, 8.897),
+        'right_elbow': (23.567, 19.425), 'right_wrist': (2.048, -25.907),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-1.614, -18.579, 7.216), 'spine_thoracic': (-10.781, -2.973, 8.137),
-        'neck': (5.265, -0.404, -13.745), 'head': (5.406, -0.014), 'right_clavicle': (6.015, 9.898),
-        'right_shoulder': (86.674, 7.906, -3.563), 'right_elbow': (12.228, 7.039),
-        'right_wrist': (-3.492, -23.899),
+        'spine_lumbar': (0.506, -18.001, 8.979), 'spine_thoracic': (-11.251, -1.898, 9.048),
+        'neck': (4.523, -0.449, -15.845), 'head': (4.679, -0.014), 'right_clavicle': (5.354, 7.671),
+        'right_shoulder': (84.302, 7.299, -3.617), 'right_elbow': (21.858, 7.619),
+        'right_wrist': (-3.363, -29.92),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
-        'spine_lumbar': (1.568, -20.0, 6.55), 'spine_thoracic': (-8.998, -5.527, 8.095),
-        'neck': (3.196, -0.49, -16.924), 'head': (3.357, -0.015), 'right_clavicle': (1.639, 8.707),
-        'right_shoulder': (87.145, 7.882, -4.565), 'right_elbow': (24.086, 6.737),
-        'right_wrist': (-3.556, -30.0),
+        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
+        'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (-0.939, -19.245, 6.495), 'spine_thoracic': (-10.29, -4.573, 7.774),
-        'neck': (4.81, -0.421, -14.233), 'head': (4.955, -0.014), 'right_clavicle': (6.497, 12.539),
-        'right_shoulder': (87.736, 12.753, -1.968), 'right_elbow': (11.188, 9.401),
-        'right_wrist': (-1.77, -23.331),
+        'spine_lumbar': (1.764, -18.829, 7.845), 'spine_thoracic': (-10.507, -7.646, 7.927),
+        'neck': (3.986, -0.48, -17.405), 'head': (4.153, -0.015), 'right_clavicle': (6.478, 6.415),
+        'right_shoulder': (84.515, 9.012, -1.819), 'right_elbow': (22.768, 9.444),
+        'right_wrist': (-2.432, -29.979),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (-1.001, -20.0, 5.189), 'spine_thoracic': (-11.49, -7.33, 6.893),
-        'neck': (5.513, -0.398, -13.683), 'head': (5.654, -0.014),
-        'right_clavicle': (17.073, 14.013), 'right_shoulder': (87.311, 19.736, 8.33),
-        'right_elbow': (3.429, 19.603), 'right_wrist': (0.67, -14.569),
+        'spine_lumbar': (4.296, -20.0, 4.456), 'spine_thoracic': (-11.547, -10.0, 6.389),
+        'neck': (3.403, -0.476, -16.146), 'head': (3.56, -0.015), 'right_clavicle': (19.218, 4.18),
+        'right_shoulder': (81.862, 15.48, 10.056), 'right_elbow': (24.869, 21.009),
+        'right_wrist': (2.476, -24.377),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (0.915, -19.889, 4.67), 'spine_thoracic': (-11.866, -9.073, 6.677),
-        'neck': (4.942, -0.42, -14.337), 'head': (5.088, -0.014),
-        'right_clavicle': (21.915, 11.325), 'right_shoulder': (86.864, 20.681, 13.521),
-        'right_elbow': (5.44, 24.574), 'right_wrist': (0.925, -11.22),
+        'spine_lumbar': (4.513, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
+        'neck': (3.369, -0.466, -15.348), 'head': (3.52, -0.015), 'right_clavicle': (22.013, 3.855),
+        'right_shoulder': (81.551, 16.59, 12.635), 'right_elbow': (25.521, 23.457),
+        'right_wrist': (3.446, -22.268),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-3.842, -19.678, 5.723), 'spine_thoracic': (-11.076, -5.302, 7.072),
-        'neck': (6.421, -0.357, -12.273), 'head': (6.552, -0.014),
-        'right_clavicle': (12.551, 9.421), 'right_shoulder': (85.003, 9.764, 3.036),
-        'right_elbow': (7.735, 13.522), 'right_wrist': (-1.569, -20.825),
+        'spine_lumbar': (-1.785, -18.96, 7.665), 'spine_thoracic': (-11.463, -2.551, 8.279),
+        'neck': (5.652, -0.405, -14.409), 'head': (5.799, -0.014), 'right_clavicle': (8.457, 7.181),
+        'right_shoulder': (81.755, 7.312, -0.696), 'right_elbow': (21.037, 10.226),
+        'right_wrist': (-2.045, -29.993),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.056, -19.455, 6.93), 'spine_thoracic': (-9.803, -4.503, 8.226),
-        'neck': (3.722, -0.468, -16.061), 'head': (3.878, -0.015), 'right_clavicle': (3.036, 9.256),
-        'right_shoulder': (87.359, 8.186, -4.66), 'right_elbow': (19.844, 6.397),
-        'right_wrist': (-3.689, -27.556),
+        'spine_lumbar': (1.785, -17.773, 8.814), 'spine_thoracic': (-9.831, -4.629, 8.677),
+        'neck': (3.435, -0.483, -16.726), 'head': (3.595, -0.015), 'right_clavicle': (3.698, 7.42),
+        'right_shoulder': (86.726, 7.22, -4.175), 'right_elbow': (22.741, 7.162),
+        'right_wrist': (-3.417, -29.934),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (0.688, -19.534, 6.678), 'spine_thoracic': (-9.408, -4.886, 8.084),
-        'neck': (3.719, -0.466, -15.851), 'head': (3.874, -0.015),
-        'right_clavicle': (2.809, 10.092), 'right_shoulder': (87.435, 9.263, -4.118),
-        'right_elbow': (19.851, 7.205), 'right_wrist': (-3.104, -27.853),
+        'spine_lumbar': (1.812, -17.804, 8.539), 'spine_thoracic': (-9.386, -6.334, 8.319),
+        'neck': (3.324, -0.488, -16.982), 'head': (3.486, -0.015), 'right_clavicle': (3.452, 7.14),
+        'right_shoulder': (86.9, 7.191, -4.019), 'right_elbow': (22.966, 7.29),
+        'right_wrist': (-3.278, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (-1.537, -19.844, 5.803), 'spine_thoracic': (-10.998, -5.705, 7.23),
-        'neck': (5.447, -0.4, -13.72), 'head': (5.589, -0.014), 'right_clavicle': (11.759, 13.835),
-        'right_shoulder': (87.556, 16.592, 2.611), 'right_elbow': (5.477, 13.96),
-        'right_wrist': (-0.284, -18.991),
+        'spine_lumbar': (2.846, -19.982, 5.774), 'spine_thoracic': (-11.161, -9.78, 6.868),
+        'neck': (3.938, -0.476, -16.998), 'head': (4.102, -0.015),
+        'right_clavicle': (13.528, 5.028), 'right_shoulder': (82.251, 12.587, 4.785),
+        'right_elbow': (23.59, 15.867), 'right_wrist': (0.384, -27.632),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (0.105, -19.999, 4.702), 'spine_thoracic': (-11.742, -8.749, 6.659),
-        'neck': (5.216, -0.408, -13.972), 'right_clavicle': (20.367, 12.927),
-        'right_shoulder': (87.022, 20.952, 11.956), 'right_elbow': (4.338, 23.142),
-        'right_wrist': (0.994, -11.893),
+        'spine_lumbar': (5.198, -19.932, 3.87), 'spine_thoracic': (-11.813, -10.0, 6.205),
+        'neck': (3.078, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.123, 3.71),
+        'right_shoulder': (81.865, 17.11, 12.631), 'right_elbow': (25.645, 23.545),
+        'right_wrist': (3.443, -22.227),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (0.466, -19.508, 4.717), 'spine_thoracic': (-11.799, -9.012, 6.605),
-        'neck': (5.07, -0.408, -13.694), 'head': (5.211, -0.014),
-        'right_clavicle': (21.739, 10.023), 'right_shoulder': (86.269, 18.604, 13.465),
-        'right_elbow': (7.091, 24.251), 'right_wrist': (0.84, -12.17),
+        'spine_lumbar': (0.695, -18.274, 5.478), 'spine_thoracic': (-11.51, -5.916, 6.981),
+        'neck': (4.645, -0.4, -12.48), 'head': (4.778, -0.014), 'right_clavicle': (15.303, 5.732),
+        'right_shoulder': (80.627, 10.849, 8.679), 'right_elbow': (27.109, 18.721),
+        'right_wrist': (1.827, -27.563),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (3.579, -12.856, 9.958), 'spine_thoracic': (-10.005, -1.979, 9.077),
-        'neck': (2.626, -0.436, -11.881), 'head': (2.752, -0.014), 'right_clavicle': (6.24, 9.115),
-        'right_shoulder': (87.642, 7.033, 1.36), 'right_elbow': (22.873, 10.602),
-        'right_wrist': (-1.599, -24.055),
+        'spine_lumbar': (5.927, -14.348, 10.033), 'spine_thoracic': (-10.657, -0.641, 9.849),
+        'neck': (1.686, -0.483, -13.903), 'head': (1.823, -0.015), 'right_clavicle': (4.844, 8.271),
+        'right_shoulder': (85.636, 7.932, 1.412), 'right_elbow': (32.993, 11.258),
+        'right_wrist': (-1.598, -29.795),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)

@@ -322,26 +322,102 @@ def _solve_keys(
     root: tuple[FloatArray, FloatArray],
     clock: FloatArray,
     first: str = "arm",
-) -> tuple[FloatArray, str, FloatArray]:
+    trunk: FloatArray | None = None,
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
     """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
     (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
-    first, the torso when the arm leaves a keyframe short (``first``: the series' strokes so
-    far went with the torso, so this one starts and ends on their pose). Also the reach and
-    the tip's distance per keyframe."""
+    first, else on one still trunk (``_frozen_trunk``, reach ``girdle``: a mechanic keeps the
+    trunk still and swings the wrench with the arm; solved with the torso at every key, the
+    trunk pumped 15 deg with every stroke) where the clavicle and arm on it reach every key,
+    else the torso at every key (``first``: the series' strokes so far went with the torso,
+    so this one starts and ends on their pose; ``trunk``: the still trunk its strokes share).
+    Also the reach, the tip's distance per keyframe and the series' still trunk."""
     sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
+
+    def solved(start: FloatArray, reach: str) -> tuple[FloatArray, FloatArray]:
+        q = _chain(state, sites, hands, tips, start, root, reach)
+        q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
+        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, reach, clock[1:])
+        return q, _errors(state, q, root, sites, [hands, tips])
+
+    if trunk is not None:
+        q, err = solved(_with_trunk(state, q0, trunk), "girdle")
+        if err.max() <= TOLERANCE:
+            return _answer(state, seg, tips, root, q, "girdle", trunk)
+    tried: dict[str, tuple[FloatArray, FloatArray]] = {}
     best, reach = None, "arm"
     for r in (first, "torso" if first == "arm" else "arm"):
-        q = _chain(state, sites, hands, tips, q0, root, r)
-        q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
-        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r, clock[1:])
-        err = _errors(state, q, root, sites, [hands, tips])
+        q, err = tried[r] = solved(q0, r)
         if best is None or err.max() < best[1].max() - 1e-6:
             best, reach = (q, err), r
         if best[1].max() <= TOLERANCE:
             break
     assert best is not None
-    tip_err = _errors(state, best[0], root, [seg.goal.effector], [tips])
-    return best[0], reach, tip_err
+    if trunk is None and reach == "torso" and "arm" in tried:
+        idx = state.skel.dofs_of_joints(TRUNK_JOINTS)
+
+        def reaches(t: FloatArray) -> bool:
+            q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle")
+            reached = _errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE
+            return bool(reached and _off_stops(state, q, seg.goal.effector[0]))
+
+        lean = tried["torso"][0][int(np.argmax(tried["arm"][1])), idx]
+        still = _frozen_trunk(reaches, q0, idx, lean)
+        q, err = solved(_with_trunk(state, q0, still), "girdle")
+        if err.max() <= TOLERANCE:
+            return _answer(state, seg, tips, root, q, "girdle", still)
+    return _answer(state, seg, tips, root, best[0], reach, None)
+
+
+def _answer(
+    state: PoseState, seg: Segment, tips: FloatArray, root: Any, q: FloatArray, reach: str,
+    trunk: FloatArray | None,
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:  # fmt: skip
+    """A solution as ``_solve_keys`` returns it, with the tip's distance per keyframe."""
+    return q, reach, _errors(state, q, root, [seg.goal.effector], [tips]), trunk
+
+
+TRUNK_JOINTS = ("lumbar", "thorax")  # held still through a fastener's strokes
+
+
+def _with_trunk(state: PoseState, q: FloatArray, trunk: FloatArray) -> FloatArray:
+    """``q`` with the trunk's dofs set to ``trunk``."""
+    out = q.copy()
+    out[state.skel.dofs_of_joints(TRUNK_JOINTS)] = trunk
+    return out
+
+
+TRUNK_HALVINGS = 3  # bisections of the way from the reach pose's trunk to the leaning one
+
+
+STOP_MARGIN = math.radians(2.0)  # a reaching arm's girdle, shoulder and elbow this off stops
+
+
+def _off_stops(state: PoseState, q: FloatArray, side: str) -> bool:
+    """Whether keys ``q`` keep the clavicle, shoulder and elbow off their stops (the wrist
+    turns to its stops: the forearm's roll takes the rest). Leaned in just enough for the tip to
+    reach, the arm swung at its stops and the tip left the bolt by 11 mm between the keys."""
+    skel = state.skel
+    idx = skel.dofs_of_joints([f"{side}_clavicle", f"{side}_shoulder", f"{side}_elbow"])
+    lo, hi = skel.lower[idx] + STOP_MARGIN, skel.upper[idx] - STOP_MARGIN
+    return bool(np.all((q[:, idx] >= lo) & (q[:, idx] <= hi)))
+
+
+def _frozen_trunk(
+    reaches: Callable[[FloatArray], bool], q0: FloatArray, idx: list[int], lean: FloatArray
+) -> FloatArray:
+    """The trunk a series of strokes keeps still: the least part of the way from the reach
+    pose's trunk to ``lean`` (the torso-chained solution's trunk at the key the arm alone misses
+    most) with which the arm reaches every key (``reaches``), found by bisection; so the trunk
+    leans in once, no further than it must, and stays."""
+    lo, hi = 0.0, 1.0
+    for _ in range(TRUNK_HALVINGS):
+        mid = 0.5 * (lo + hi)
+        if reaches(q0[idx] + mid * (lean - q0[idx])):
+            hi = mid
+        else:
+            lo = mid
+    return q0[idx] + hi * (lean - q0[idx])
 
 
 def _chain(
@@ -526,6 +602,7 @@ class Series:
     solved: dict[tuple[Any, ...], StrokeSolution] = dataclasses.field(default_factory=dict)
     previous: Segment | None = None  # the stroke before, whose last keyframe this one starts at
     tip_errors: dict[bytes, float] = dataclasses.field(default_factory=dict)  # by pose
+    trunk: FloatArray | None = None  # the lumbar and thorax dofs its strokes keep still
 
 
 def _start_pose(state: PoseState, seg: Segment, run: Series) -> FloatArray:
@@ -585,8 +662,11 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
     clock = key_times(frac, bool(lift.max() > 0))
-    first = next((s.reach for s in run.solved.values()), "arm")
-    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root, clock, first)
+    first = "arm" if next((s.reach for s in run.solved.values()), "arm") == "arm" else "torso"
+    q, reach, tip_err, trunk = _solve_keys(
+        state, seg, hands, tips, run.q_reached, run.root, clock, first, run.trunk
+    )
+    run.trunk = run.trunk if trunk is None else trunk
     q, tip_err = _closed(q, tip_err, frac, lift)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]
@@ -628,7 +708,10 @@ def _bent(
     tips = sol.tips[keys]
     rp, rr = np.tile(run.root[0], (k, 1)), np.tile(run.root[1], (k, 1))
     eff = seg.goal.effector
-    q = solve_ta(skel, [Goal(eff, position=tips)], guess, reach=sol.reach, restarts=0,
+    # a still trunk's stroke blends from or to the reach pose's trunk: the arm alone on the
+    # trunk half-way left the tip 11 mm off the bolt; the torso corrects it
+    reach = "torso" if sol.reach == "girdle" else sol.reach
+    q = solve_ta(skel, [Goal(eff, position=tips)], guess, reach=reach, restarts=0,
                  null_gain=0.0, tol=2e-4, root_position=rp, root_rotation=rr).q  # fmt: skip
     return q, _errors(state, q, run.root, [eff], [tips])
 

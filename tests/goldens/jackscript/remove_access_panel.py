@@ -90,33 +90,32 @@ def remove_access_panel():
         'left_ankle': (7.432, 0.422),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.269582)
+    human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.27052)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'neck': (0.002, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (0.348, -0.002, -6.849), 'head': (0.351, 0.0)})
+    human.KeyJoints(1.4, {'neck': (0.521, 0.0, -7.117), 'head': (0.223, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (0.895, -0.005, -17.559), 'head': (0.902, 0.0),
+        'neck': (1.321, 0.0, -18.057), 'head': (0.566, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=1.564319, duration=10.902187)
+    human.LookAt((-20.0, 135.0, 112.0), start=1.565256, duration=10.90125)
     human.KeyJoints(1.6, {
-        'neck': (1.087, -0.004, -21.117), 'head': (1.094, 0.0),
-        'right_shoulder': (8.654, 5.731, 11.452), 'right_elbow': (34.377, 17.184),
-        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'neck': (1.548, 0.0, -21.156), 'right_shoulder': (8.654, 5.731, 11.452),
+        'right_elbow': (34.377, 17.184), 'right_wrist': (-0.001, -0.023),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'right_shoulder': (10.5, 5.761, 11.218), 'right_elbow': (34.372, 17.031),
-        'right_wrist': (-0.018, -0.723),
+        'head': (0.663, 0.0), 'right_shoulder': (10.5, 5.761, 11.218),
+        'right_elbow': (34.372, 17.031), 'right_wrist': (-0.018, -0.723),
     })
     human.KeyJoints(1.8, {
         'right_shoulder': (16.463, 5.86, 10.461), 'right_elbow': (34.354, 16.538),
@@ -142,41 +141,41 @@ def remove_access_panel():
         'right_elbow': (33.643, 12.107), 'right_wrist': (-0.738, -22.828),
     })
     human.KeyJoints(2.3, {
-        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0),
+        'neck': (1.548, 0.0, -21.156), 'head': (0.663, 0.0),
         'right_shoulder': (81.45, 8.827, 1.534), 'right_elbow': (32.914, 11.082),
         'right_wrist': (-1.083, -26.792),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
         'spine_lumbar': (5.331, 0.71, 1.242), 'spine_thoracic': (-1.43, -1.394, 1.231),
-        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (2.014, 0.687),
+        'neck': (0.274, 0.0, -22.561), 'head': (0.117, 0.0), 'right_clavicle': (2.014, 0.687),
         'right_shoulder': (89.036, 10.064, 0.169), 'right_elbow': (32.238, 10.408),
         'right_wrist': (-1.383, -29.157),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.075, 0.809, 1.415), 'spine_thoracic': (-1.64, -1.593, 1.402),
-        'neck': (-0.252, -0.593, -24.712), 'head': (-0.376, -0.001),
-        'right_clavicle': (2.301, 0.781), 'right_shoulder': (91.678, 10.535, -0.321),
-        'right_elbow': (31.982, 10.171), 'right_wrist': (-1.496, -29.962),
+        'neck': (-0.739, 0.0, -24.573), 'head': (-0.246, 0.0), 'right_clavicle': (2.301, 0.781),
+        'right_shoulder': (91.678, 10.535, -0.321), 'right_elbow': (31.982, 10.171),
+        'right_wrist': (-1.496, -29.962),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
     human.KeyJoints(2.6, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
-        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
-        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.868, 10.559, -0.346),
-        'right_elbow': (31.861, 10.16), 'right_wrist': (-1.494, -30.0),
+        'neck': (-1.415, 0.0, -25.794), 'head': (-0.472, 0.0), 'right_clavicle': (2.315, 0.785),
+        'right_shoulder': (91.868, 10.559, -0.346), 'right_elbow': (31.861, 10.16),
+        'right_wrist': (-1.494, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
         'spine_lumbar': (7.139, 1.031, 1.356), 'spine_thoracic': (-2.498, -2.44, 1.432),
-        'neck': (-0.585, -0.75, -26.415), 'right_clavicle': (9.708, 0.035),
+        'neck': (-1.376, 0.0, -26.231), 'right_clavicle': (9.708, 0.035),
         'right_shoulder': (86.736, 15.402, 1.52), 'right_elbow': (33.601, 12.901),
         'right_wrist': (-1.419, -24.475),
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (10.06, 1.696, 1.151), 'spine_thoracic': (-4.875, -4.751, 1.473),
-        'neck': (-0.552, -0.759, -27.539), 'right_clavicle': (27.128, 4.181),
+        'neck': (-1.355, 0.0, -27.373), 'right_clavicle': (27.128, 4.181),
         'right_shoulder': (74.582, 34.572, 6.225), 'right_elbow': (33.558, 20.929),
         'right_wrist': (-1.365, -2.109),
     })
@@ -286,9 +285,8 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'head': (-0.721, -0.002), 'right_clavicle': (6.112, -3.443),
-        'right_shoulder': (87.316, 9.519, 0.109), 'right_elbow': (36.376, 10.337),
-        'right_wrist': (-2.228, -27.115),
+        'right_clavicle': (6.112, -3.443), 'right_shoulder': (87.316, 9.519, 0.109),
+        'right_elbow': (36.376, 10.337), 'right_wrist': (-2.228, -27.115),
     })
     human.KeyJoints(5.5, {
         'right_clavicle': (24.488, 3.191), 'right_shoulder': (76.682, 32.407, 6.59),
@@ -568,19 +566,19 @@ def remove_access_panel():
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (10.024, 1.688, 1.154), 'spine_thoracic': (-4.846, -4.722, 1.472),
-        'neck': (-0.552, -0.759, -27.524), 'right_clavicle': (28.094, 4.012),
+        'neck': (-1.355, 0.0, -27.358), 'right_clavicle': (28.094, 4.012),
         'right_shoulder': (73.463, 34.583, 5.882), 'right_elbow': (34.1, 20.654),
         'right_wrist': (-1.614, -1.888),
     })
     human.KeyJoints(12.2, {
         'spine_lumbar': (7.86, 1.212, 1.279), 'spine_thoracic': (-3.128, -3.039, 1.421),
-        'neck': (-0.556, -0.743, -26.629), 'head': (-0.717, -0.002),
-        'right_clavicle': (21.024, -6.966), 'right_shoulder': (74.711, 13.144, 1.462),
-        'right_elbow': (43.726, 12.026), 'right_wrist': (-3.844, -22.266),
+        'neck': (-1.331, 0.0, -26.453), 'right_clavicle': (21.024, -6.966),
+        'right_shoulder': (74.711, 13.144, 1.462), 'right_elbow': (43.726, 12.026),
+        'right_wrist': (-3.844, -22.266),
     })
     human.KeyJoints(12.3, {
         'spine_lumbar': (6.255, 0.894, 1.379), 'spine_thoracic': (-1.765, -1.685, 1.376),
-        'neck': (-0.631, -0.758, -25.905), 'right_clavicle': (11.763, -1.324),
+        'neck': (-1.441, 0.0, -25.708), 'right_clavicle': (11.763, -1.324),
         'right_shoulder': (84.627, 8.996, -4.792), 'right_elbow': (37.116, 5.8),
         'right_wrist': (-4.978, -29.999),
     })
@@ -588,54 +586,54 @@ def remove_access_panel():
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
     human.KeyJoints(12.4, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
-        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
-        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
-        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
+        'neck': (-1.415, 0.0, -25.794), 'right_clavicle': (2.315, 0.785),
+        'right_shoulder': (91.802, 10.558, -0.344), 'right_elbow': (31.97, 10.16),
+        'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=12.466506, duration=0.335738)
-    human.KeyJoints(12.5, {'neck': (-0.632, -0.735, -24.709), 'head': (-0.786, -0.002)})
-    human.KeyJoints(12.6, {'neck': (-0.834, -0.527, -10.011)})
+    human.LookAt((20.0, 135.0, 112.0), start=12.466506, duration=0.337285)
+    human.KeyJoints(12.5, {'neck': (-1.427, 0.0, -24.528), 'head': (-0.476, 0.0)})
+    human.KeyJoints(12.6, {'neck': (-1.558, 0.0, -9.941)})
     human.KeyJoints(12.7, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
-        'neck': (-1.104, -0.248, 9.684), 'right_clavicle': (2.315, 0.785),
+        'neck': (-1.736, 0.0, 9.682), 'right_clavicle': (2.315, 0.785),
         'right_shoulder': (91.802, 10.558, -0.344),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
         'spine_lumbar': (6.055, 0.644, 1.52), 'spine_thoracic': (-1.716, -1.633, 1.502),
-        'neck': (-1.243, -0.104, 19.841), 'head': (-1.172, -0.003),
-        'right_clavicle': (2.311, 0.879), 'right_shoulder': (91.742, 10.461, -0.296),
-        'right_elbow': (32.005, 10.18), 'right_wrist': (-1.488, -29.967),
+        'neck': (-1.829, 0.0, 20.012), 'head': (-0.61, 0.0), 'right_clavicle': (2.311, 0.879),
+        'right_shoulder': (91.742, 10.461, -0.296), 'right_elbow': (32.005, 10.18),
+        'right_wrist': (-1.488, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=12.802244, duration=10.448757)
+    human.LookAt((20.0, 135.0, 112.0), start=12.803792, duration=10.447209)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.53, -0.979, 2.452), 'spine_thoracic': (-2.349, -1.926, 2.388),
-        'neck': (-0.723, -0.181, 13.528), 'head': (-0.66, -0.003), 'right_clavicle': (2.279, 1.774),
+        'neck': (-1.077, 0.0, 13.817), 'head': (-0.345, 0.0), 'right_clavicle': (2.279, 1.774),
         'right_shoulder': (91.17, 9.541, 0.166), 'right_elbow': (32.341, 10.369),
         'right_wrist': (-1.355, -29.656),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (4.489, -4.358, 4.388), 'spine_thoracic': (-3.67, -2.536, 4.229),
-        'neck': (0.342, -0.315, 1.585), 'right_clavicle': (2.207, 3.627),
+        'neck': (0.49, 0.0, 1.758), 'right_clavicle': (2.207, 3.627),
         'right_shoulder': (89.926, 7.667, 1.104), 'right_wrist': (-1.087, -29.031),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (3.849, -8.524, 6.742), 'spine_thoracic': (-5.384, -3.305, 6.467),
-        'neck': (1.335, -0.384, -6.701), 'head': (1.424, -0.012), 'right_clavicle': (2.163, 5.804),
+        'neck': (1.922, 0.0, -6.7), 'head': (0.824, 0.0), 'right_clavicle': (2.163, 5.804),
         'right_shoulder': (88.507, 5.898, 1.975), 'right_elbow': (33.626, 11.147),
         'right_wrist': (-0.87, -28.561),
     })
     human.KeyJoints(13.2, {
         'spine_lumbar': (5.602, -12.329, 8.788), 'spine_thoracic': (-7.416, -4.087, 8.403),
-        'neck': (1.907, -0.417, -10.606), 'head': (2.019, -0.014), 'right_clavicle': (2.459, 7.392),
+        'neck': (2.736, 0.0, -10.663), 'head': (1.173, 0.0), 'right_clavicle': (2.459, 7.392),
         'right_shoulder': (88.727, 6.352, 1.666), 'right_elbow': (33.335, 11.166),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (7.087, -13.846, 9.572), 'spine_thoracic': (-8.409, -4.43, 9.141),
-        'neck': (0.331, -0.49, -14.055), 'head': (0.458, -0.015), 'right_clavicle': (2.709, 7.889),
+        'neck': (0.474, 0.0, -13.951), 'head': (0.203, 0.0), 'right_clavicle': (2.709, 7.889),
         'right_shoulder': (89.446, 7.248, 1.161), 'right_elbow': (32.938, 11.056),
         'right_wrist': (-1.354, -29.95),
     })
@@ -643,606 +641,606 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (0.163, -0.504, -14.994), 'head': (0.295, -0.015), 'right_clavicle': (2.715, 7.9),
+        'neck': (0.234, 0.0, -14.844), 'head': (0.1, 0.0), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.372, -14.925, 9.149), 'spine_thoracic': (-9.903, -5.253, 8.836),
-        'neck': (1.293, -0.487, -15.469), 'head': (1.434, -0.014), 'right_clavicle': (4.823, 7.227),
+        'neck': (1.849, 0.0, -15.601), 'head': (0.792, 0.0), 'right_clavicle': (4.823, 7.227),
         'right_shoulder': (87.096, 8.841, 1.653), 'right_elbow': (31.533, 11.734),
         'right_wrist': (-1.289, -29.982),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.541, -19.777, 4.88), 'spine_thoracic': (-11.346, -9.903, 6.437),
-        'neck': (3.207, -0.463, -16.404), 'head': (3.36, -0.014), 'right_clavicle': (16.913, 4.343),
+        'neck': (4.607, 0.0, -16.566), 'head': (1.975, 0.0), 'right_clavicle': (16.913, 4.343),
         'right_shoulder': (82.918, 14.602, 8.633), 'right_elbow': (24.528, 19.541),
         'right_wrist': (1.893, -25.605),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.727, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.804, -0.463, -15.79), 'head': (2.952, -0.014), 'right_clavicle': (21.909, 3.56),
+        'neck': (4.028, 0.0, -15.944), 'head': (1.726, 0.0), 'right_clavicle': (21.909, 3.56),
         'right_shoulder': (82.743, 17.162, 12.873), 'right_elbow': (25.256, 23.741),
         'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(13.8, {
         'spine_lumbar': (-1.53, -19.425, 6.759), 'spine_thoracic': (-11.349, -3.766, 7.666),
-        'neck': (5.537, -0.387, -13.913), 'head': (5.674, -0.014),
-        'right_clavicle': (10.451, 6.659), 'right_shoulder': (81.719, 8.079, 2.021),
-        'right_elbow': (21.029, 12.727), 'right_wrist': (-0.87, -29.845),
+        'neck': (7.926, 0.0, -14.04), 'head': (3.397, 0.0), 'right_clavicle': (10.451, 6.659),
+        'right_shoulder': (81.719, 8.079, 2.021), 'right_elbow': (21.029, 12.727),
+        'right_wrist': (-0.87, -29.845),
     })
     human.KeyJoints(13.9, {
         'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.286, -3.485, 8.9),
-        'neck': (3.369, -0.461, -16.542), 'head': (3.523, -0.014), 'right_clavicle': (4.092, 7.555),
+        'neck': (4.837, 0.0, -16.699), 'head': (2.073, 0.0), 'right_clavicle': (4.092, 7.555),
         'right_shoulder': (87.046, 7.517, -3.752), 'right_elbow': (22.081, 7.543),
         'right_wrist': (-3.302, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (2.468, -17.282, 8.628), 'spine_thoracic': (-8.857, -6.032, 8.39),
-        'neck': (2.741, -0.475, -16.737), 'head': (2.895, -0.014), 'right_clavicle': (2.864, 7.288),
+        'neck': (3.934, 0.0, -16.891), 'head': (1.686, 0.0), 'right_clavicle': (2.864, 7.288),
         'right_shoulder': (88.599, 6.929, -3.84), 'right_elbow': (22.55, 7.423),
         'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(14.1, {
         'spine_lumbar': (2.976, -19.743, 6.337), 'spine_thoracic': (-10.935, -9.349, 7.06),
-        'neck': (3.764, -0.463, -17.328), 'head': (3.924, -0.014),
-        'right_clavicle': (11.121, 5.312), 'right_shoulder': (83.615, 11.646, 2.944),
-        'right_elbow': (22.799, 14.058), 'right_wrist': (-0.405, -28.558),
+        'neck': (5.407, 0.0, -17.502), 'head': (2.317, 0.0), 'right_clavicle': (11.121, 5.312),
+        'right_shoulder': (83.615, 11.646, 2.944), 'right_elbow': (22.799, 14.058),
+        'right_wrist': (-0.405, -28.558),
     })
     human.KeyJoints(14.2, {
         'spine_lumbar': (5.715, -19.944, 3.832), 'spine_thoracic': (-11.7, -10.0, 6.066),
-        'neck': (2.798, -0.464, -15.898), 'head': (2.947, -0.014),
-        'right_clavicle': (21.591, 3.586), 'right_shoulder': (82.782, 17.051, 12.596),
-        'right_elbow': (25.203, 23.481), 'right_wrist': (3.392, -22.344),
+        'neck': (4.019, 0.0, -16.052), 'head': (1.722, 0.0), 'right_clavicle': (21.591, 3.586),
+        'right_shoulder': (82.782, 17.051, 12.596), 'right_elbow': (25.203, 23.481),
+        'right_wrist': (3.392, -22.344),
     })
     human.KeyJoints(14.3, {
         'spine_lumbar': (0.931, -20.0, 4.531), 'spine_thoracic': (-11.447, -8.139, 6.413),
-        'neck': (4.684, -0.402, -13.774), 'head': (4.821, -0.014),
-        'right_clavicle': (17.652, 5.004), 'right_shoulder': (81.199, 12.334, 9.419),
-        'right_elbow': (23.386, 19.916), 'right_wrist': (2.22, -25.598),
+        'neck': (6.713, 0.0, -13.901), 'head': (2.877, 0.0), 'right_clavicle': (17.652, 5.004),
+        'right_shoulder': (81.199, 12.334, 9.419), 'right_elbow': (23.386, 19.916),
+        'right_wrist': (2.22, -25.598),
     })
     human.KeyJoints(14.4, {
         'spine_lumbar': (1.013, -17.899, 8.988), 'spine_thoracic': (-11.196, -1.739, 9.035),
-        'neck': (4.262, -0.436, -15.816), 'head': (4.412, -0.014), 'right_clavicle': (5.238, 7.664),
+        'neck': (6.115, 0.0, -15.967), 'head': (2.621, 0.0), 'right_clavicle': (5.238, 7.664),
         'right_shoulder': (85.108, 7.423, -3.266), 'right_elbow': (21.495, 7.918),
         'right_wrist': (-3.227, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'neck': (3.84, 0.0, -16.844), 'head': (1.646, 0.0), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
         'spine_lumbar': (2.336, -18.54, 7.945), 'spine_thoracic': (-10.379, -7.432, 7.975),
-        'neck': (3.648, -0.466, -17.386), 'head': (3.808, -0.014), 'right_clavicle': (6.114, 6.466),
+        'neck': (5.239, 0.0, -17.558), 'head': (2.245, 0.0), 'right_clavicle': (6.114, 6.466),
         'right_shoulder': (85.618, 9.038, -1.704), 'right_elbow': (22.319, 9.53),
         'right_wrist': (-2.382, -29.993),
     })
     human.KeyJoints(14.7, {
         'spine_lumbar': (4.825, -20.0, 4.432), 'spine_thoracic': (-11.448, -10.0, 6.272),
-        'neck': (3.127, -0.463, -16.27), 'head': (3.279, -0.014), 'right_clavicle': (18.736, 4.066),
+        'neck': (4.492, 0.0, -16.43), 'head': (1.925, 0.0), 'right_clavicle': (18.736, 4.066),
         'right_shoulder': (82.78, 15.471, 10.049), 'right_elbow': (24.412, 20.979),
         'right_wrist': (2.445, -24.428),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (5.22, -19.876, 3.762), 'spine_thoracic': (-11.727, -10.0, 6.047),
-        'neck': (3.018, -0.455, -15.472), 'head': (3.164, -0.014),
-        'right_clavicle': (21.776, 3.665), 'right_shoulder': (82.509, 16.763, 12.838),
-        'right_elbow': (25.177, 23.645), 'right_wrist': (3.485, -22.179),
+        'neck': (4.335, 0.0, -15.621), 'head': (1.858, 0.0), 'right_clavicle': (21.776, 3.665),
+        'right_shoulder': (82.509, 16.763, 12.838), 'right_elbow': (25.177, 23.645),
+        'right_wrist': (3.485, -22.179),
     })
     human.KeyJoints(14.9, {
         'spine_lumbar': (-1.273, -18.966, 7.568), 'spine_thoracic': (-11.379, -2.599, 8.165),
-        'neck': (5.395, -0.396, -14.394), 'head': (5.536, -0.014), 'right_clavicle': (8.451, 7.078),
+        'neck': (7.727, 0.0, -14.527), 'head': (3.312, 0.0), 'right_clavicle': (8.451, 7.078),
         'right_shoulder': (82.495, 7.509, -0.178), 'right_elbow': (20.781, 10.686),
         'right_wrist': (-1.847, -29.986),
     })
     human.KeyJoints(15.0, {
         'spine_lumbar': (2.377, -17.51, 8.893), 'spine_thoracic': (-9.794, -4.329, 8.746),
-        'neck': (3.125, -0.467, -16.637), 'head': (3.279, -0.014), 'right_clavicle': (3.643, 7.474),
+        'neck': (4.487, 0.0, -16.793), 'head': (1.923, 0.0), 'right_clavicle': (3.643, 7.474),
         'right_shoulder': (87.673, 7.37, -3.812), 'right_elbow': (22.259, 7.48),
         'right_wrist': (-3.262, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (2.42, -17.441, 8.612), 'spine_thoracic': (-9.199, -6.132, 8.383),
-        'neck': (2.937, -0.473, -16.866), 'head': (3.093, -0.014), 'right_clavicle': (3.268, 7.206),
+        'neck': (4.217, 0.0, -17.023), 'head': (1.807, 0.0), 'right_clavicle': (3.268, 7.206),
         'right_shoulder': (88.062, 7.241, -3.684), 'right_elbow': (22.479, 7.581),
         'right_wrist': (-3.107, -30.0),
     })
     human.KeyJoints(15.2, {
         'spine_lumbar': (3.389, -19.935, 5.779), 'spine_thoracic': (-11.07, -9.731, 6.797),
-        'neck': (3.656, -0.462, -17.12), 'head': (3.814, -0.014), 'right_clavicle': (13.119, 4.953),
+        'neck': (5.252, 0.0, -17.292), 'head': (2.251, 0.0), 'right_clavicle': (13.119, 4.953),
         'right_shoulder': (83.199, 12.641, 4.835), 'right_elbow': (23.139, 15.896),
         'right_wrist': (0.383, -27.633),
     })
     human.KeyJoints(15.3, {
         'spine_lumbar': (5.797, -19.928, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
-        'neck': (2.77, -0.464, -15.864), 'head': (2.919, -0.014), 'right_clavicle': (21.848, 3.544),
+        'neck': (3.979, 0.0, -16.019), 'head': (1.705, 0.0), 'right_clavicle': (21.848, 3.544),
         'right_shoulder': (82.784, 17.195, 12.817), 'right_elbow': (25.269, 23.7),
         'right_wrist': (3.475, -22.149),
     })
     human.KeyJoints(15.4, {
         'spine_lumbar': (-0.465, -19.984, 5.179), 'spine_thoracic': (-11.365, -6.727, 6.763),
-        'neck': (5.196, -0.389, -13.553), 'head': (5.331, -0.014),
-        'right_clavicle': (15.223, 5.617), 'right_shoulder': (81.08, 10.54, 7.034),
-        'right_elbow': (22.415, 17.54), 'right_wrist': (1.269, -27.416),
+        'neck': (7.441, 0.0, -13.677), 'head': (3.189, 0.0), 'right_clavicle': (15.223, 5.617),
+        'right_shoulder': (81.08, 10.54, 7.034), 'right_elbow': (22.415, 17.54),
+        'right_wrist': (1.269, -27.416),
     })
     human.KeyJoints(15.5, {
         'spine_lumbar': (1.603, -17.771, 9.093), 'spine_thoracic': (-10.973, -2.142, 9.084),
-        'neck': (3.911, -0.446, -16.154), 'right_clavicle': (4.764, 7.685),
+        'neck': (5.613, 0.0, -16.309), 'right_clavicle': (4.764, 7.685),
         'right_shoulder': (85.847, 7.528, -3.568), 'right_elbow': (21.745, 7.675),
         'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'neck': (3.84, 0.0, -16.844), 'head': (1.646, 0.0), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
         'spine_lumbar': (2.443, -18.996, 7.462), 'spine_thoracic': (-10.594, -8.13, 7.677),
-        'neck': (3.756, -0.464, -17.446), 'head': (3.918, -0.014), 'right_clavicle': (7.537, 6.093),
+        'neck': (5.396, 0.0, -17.62), 'head': (2.313, 0.0), 'right_clavicle': (7.537, 6.093),
         'right_shoulder': (84.884, 9.805, -0.414), 'right_elbow': (22.396, 10.788),
         'right_wrist': (-1.834, -29.773),
     })
     human.KeyJoints(15.8, {
         'spine_lumbar': (5.232, -20.0, 4.136), 'spine_thoracic': (-11.546, -10.0, 6.158),
-        'neck': (2.97, -0.463, -16.093), 'head': (3.121, -0.014), 'right_clavicle': (20.045, 3.84),
+        'neck': (4.267, 0.0, -16.251), 'head': (1.829, 0.0), 'right_clavicle': (20.045, 3.84),
         'right_shoulder': (82.774, 16.191, 11.241), 'right_elbow': (24.79, 22.147),
         'right_wrist': (2.886, -23.49),
     })
     human.KeyJoints(15.9, {
         'spine_lumbar': (4.152, -19.901, 3.823), 'spine_thoracic': (-11.665, -9.832, 6.063),
-        'neck': (3.453, -0.441, -14.946), 'head': (3.596, -0.014), 'right_clavicle': (21.12, 3.934),
+        'neck': (4.957, 0.0, -15.088), 'head': (2.124, 0.0), 'right_clavicle': (21.12, 3.934),
         'right_shoulder': (82.091, 15.789, 12.423), 'right_elbow': (24.901, 23.106),
         'right_wrist': (3.337, -22.663),
     })
     human.KeyJoints(16.0, {
         'spine_lumbar': (-0.614, -18.527, 8.217), 'spine_thoracic': (-11.385, -1.931, 8.575),
-        'neck': (5.084, -0.409, -14.925), 'head': (5.228, -0.014), 'right_clavicle': (6.988, 7.38),
+        'neck': (7.286, 0.0, -15.065), 'head': (3.122, 0.0), 'right_clavicle': (6.988, 7.38),
         'right_shoulder': (83.37, 7.345, -1.701), 'right_elbow': (20.774, 9.296),
         'right_wrist': (-2.533, -29.999),
     })
     human.KeyJoints(16.1, {
         'spine_lumbar': (2.455, -17.372, 8.763), 'spine_thoracic': (-9.269, -5.173, 8.57),
-        'neck': (2.89, -0.472, -16.672), 'head': (3.044, -0.014), 'right_clavicle': (3.185, 7.393),
+        'neck': (4.149, 0.0, -16.826), 'head': (1.778, 0.0), 'right_clavicle': (3.185, 7.393),
         'right_shoulder': (88.241, 7.107, -3.855), 'right_elbow': (22.421, 7.425),
         'right_wrist': (-3.201, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (2.348, -17.728, 8.545), 'spine_thoracic': (-9.745, -6.354, 8.354),
-        'neck': (3.254, -0.469, -17.074), 'head': (3.411, -0.014), 'right_clavicle': (4.003, 7.046),
+        'neck': (4.672, 0.0, -17.237), 'right_clavicle': (4.003, 7.046),
         'right_shoulder': (87.168, 7.783, -3.341), 'right_elbow': (22.369, 7.924),
         'right_wrist': (-3.023, -30.0),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (3.86, -20.0, 5.265), 'spine_thoracic': (-11.2, -9.944, 6.583),
-        'neck': (3.495, -0.462, -16.832), 'head': (3.652, -0.014),
-        'right_clavicle': (15.136, 4.627), 'right_shoulder': (82.945, 13.637, 6.728),
-        'right_elbow': (23.542, 17.739), 'right_wrist': (1.154, -26.588),
+        'neck': (5.021, 0.0, -17.0), 'head': (2.152, 0.0), 'right_clavicle': (15.136, 4.627),
+        'right_shoulder': (82.945, 13.637, 6.728), 'right_elbow': (23.542, 17.739),
+        'right_wrist': (1.154, -26.588),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
-        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
-        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
+        'neck': (3.972, 0.0, -16.012), 'head': (1.702, 0.0), 'right_clavicle': (21.898, 3.536),
+        'right_shoulder': (82.785, 17.223, 12.859), 'right_elbow': (25.282, 23.742),
+        'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (-1.316, -19.817, 5.948), 'spine_thoracic': (-11.33, -5.173, 7.188),
-        'neck': (5.489, -0.384, -13.629), 'head': (5.625, -0.014),
-        'right_clavicle': (12.706, 6.174), 'right_shoulder': (81.213, 9.081, 4.433),
-        'right_elbow': (21.586, 15.019), 'right_wrist': (0.178, -28.895),
+        'neck': (7.857, 0.0, -13.753), 'head': (3.367, 0.0), 'right_clavicle': (12.706, 6.174),
+        'right_shoulder': (81.213, 9.081, 4.433), 'right_elbow': (21.586, 15.019),
+        'right_wrist': (0.178, -28.895),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (2.002, -17.702, 9.059), 'spine_thoracic': (-10.671, -2.737, 9.016),
-        'neck': (3.619, -0.454, -16.362), 'head': (3.772, -0.014), 'right_clavicle': (4.429, 7.634),
+        'neck': (5.195, 0.0, -16.518), 'head': (2.227, 0.0), 'right_clavicle': (4.429, 7.634),
         'right_shoulder': (86.456, 7.525, -3.68), 'right_elbow': (21.919, 7.599),
         'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.749, -6.003, 8.39),
-        'neck': (2.679, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'neck': (3.844, 0.0, -16.846), 'head': (1.647, 0.0), 'right_clavicle': (2.738, 7.313),
         'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
         'spine_lumbar': (2.651, -19.416, 6.916), 'spine_thoracic': (-10.777, -8.795, 7.364),
-        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.213, 5.701),
+        'neck': (5.459, 0.0, -17.612), 'head': (2.339, 0.0), 'right_clavicle': (9.213, 5.701),
         'right_shoulder': (84.198, 10.678, 1.143), 'right_elbow': (22.546, 12.305),
         'right_wrist': (-1.169, -29.297),
     })
     human.KeyJoints(16.9, {
         'spine_lumbar': (5.529, -19.977, 3.943), 'spine_thoracic': (-11.636, -10.0, 6.097),
-        'neck': (2.863, -0.464, -15.977), 'head': (3.012, -0.014),
-        'right_clavicle': (20.999, 3.682), 'right_shoulder': (82.777, 16.72, 12.083),
-        'right_elbow': (25.048, 22.976), 'right_wrist': (3.2, -22.788),
+        'neck': (4.113, 0.0, -16.133), 'head': (1.763, 0.0), 'right_clavicle': (20.999, 3.682),
+        'right_shoulder': (82.777, 16.72, 12.083), 'right_elbow': (25.048, 22.976),
+        'right_wrist': (3.2, -22.788),
     })
     human.KeyJoints(17.0, {
         'spine_lumbar': (2.619, -19.975, 4.061), 'spine_thoracic': (-11.561, -9.235, 6.169),
-        'neck': (4.05, -0.422, -14.322), 'head': (4.19, -0.014), 'right_clavicle': (19.726, 4.4),
+        'neck': (5.811, 0.0, -14.456), 'head': (2.49, 0.0), 'right_clavicle': (19.726, 4.4),
         'right_shoulder': (81.599, 14.23, 11.302), 'right_elbow': (24.295, 21.867),
         'right_wrist': (2.932, -23.843),
     })
     human.KeyJoints(17.1, {
         'spine_lumbar': (0.247, -18.115, 8.722), 'spine_thoracic': (-11.327, -1.594, 8.896),
-        'neck': (4.66, -0.423, -15.4), 'head': (4.808, -0.014), 'right_clavicle': (5.919, 7.598),
+        'neck': (6.683, 0.0, -15.545), 'head': (2.864, 0.0), 'right_clavicle': (5.919, 7.598),
         'right_shoulder': (84.272, 7.329, -2.694), 'right_elbow': (21.18, 8.403),
         'right_wrist': (-2.984, -29.985),
     })
     human.KeyJoints(17.2, {
         'spine_lumbar': (2.481, -17.26, 8.657), 'spine_thoracic': (-8.85, -5.835, 8.426),
-        'neck': (2.718, -0.475, -16.688), 'head': (2.871, -0.014), 'right_clavicle': (2.824, 7.33),
+        'neck': (3.9, 0.0, -16.84), 'head': (1.672, 0.0), 'right_clavicle': (2.824, 7.33),
         'right_shoulder': (88.67, 6.883, -3.881), 'right_elbow': (22.543, 7.386),
         'right_wrist': (-3.15, -29.993),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (2.327, -18.107, 8.368), 'spine_thoracic': (-10.14, -6.768, 8.257),
-        'neck': (3.489, -0.468, -17.334), 'head': (3.649, -0.014), 'right_clavicle': (4.97, 6.799),
+        'neck': (5.011, 0.0, -17.503), 'head': (2.147, 0.0), 'right_clavicle': (4.97, 6.799),
         'right_shoulder': (86.321, 8.402, -2.72), 'right_elbow': (22.324, 8.538),
         'right_wrist': (-2.822, -30.0),
     })
     human.KeyJoints(17.4, {
         'spine_lumbar': (4.348, -20.0, 4.817), 'spine_thoracic': (-11.329, -10.0, 6.416),
-        'neck': (3.311, -0.462, -16.525), 'head': (3.466, -0.014),
-        'right_clavicle': (17.052, 4.337), 'right_shoulder': (82.822, 14.591, 8.502),
-        'right_elbow': (23.975, 19.468), 'right_wrist': (1.855, -25.505),
+        'neck': (4.757, 0.0, -16.689), 'head': (2.039, 0.0), 'right_clavicle': (17.052, 4.337),
+        'right_shoulder': (82.822, 14.591, 8.502), 'right_elbow': (23.975, 19.468),
+        'right_wrist': (1.855, -25.505),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (5.716, -19.891, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.809, -0.463, -15.783), 'head': (2.957, -0.014),
-        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.738, 17.154, 12.873),
-        'right_elbow': (25.253, 23.741), 'right_wrist': (3.499, -22.114),
+        'neck': (4.035, 0.0, -15.937), 'head': (1.729, 0.0), 'right_clavicle': (21.909, 3.562),
+        'right_shoulder': (82.738, 17.154, 12.873), 'right_elbow': (25.253, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(17.6, {
         'spine_lumbar': (-1.533, -19.413, 6.781), 'spine_thoracic': (-11.349, -3.731, 7.68),
-        'neck': (5.537, -0.387, -13.922), 'head': (5.675, -0.014),
-        'right_clavicle': (10.393, 6.671), 'right_shoulder': (81.737, 8.058, 1.958),
-        'right_elbow': (21.019, 12.669), 'right_wrist': (-0.898, -29.86),
+        'neck': (7.927, 0.0, -14.049), 'head': (3.397, 0.0), 'right_clavicle': (10.393, 6.671),
+        'right_shoulder': (81.737, 8.058, 1.958), 'right_elbow': (21.019, 12.669),
+        'right_wrist': (-0.898, -29.86),
     })
     human.KeyJoints(17.7, {
         'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.287, -3.484, 8.9),
-        'neck': (3.37, -0.461, -16.542), 'head': (3.524, -0.014), 'right_clavicle': (4.093, 7.555),
+        'neck': (4.838, 0.0, -16.699), 'head': (2.073, 0.0), 'right_clavicle': (4.093, 7.555),
         'right_shoulder': (87.044, 7.517, -3.752), 'right_elbow': (22.08, 7.543),
         'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (2.468, -17.281, 8.628), 'spine_thoracic': (-8.854, -6.031, 8.39),
-        'neck': (2.739, -0.475, -16.735), 'head': (2.893, -0.014), 'right_clavicle': (2.86, 7.289),
+        'neck': (3.931, 0.0, -16.889), 'head': (1.685, 0.0), 'right_clavicle': (2.86, 7.289),
         'right_shoulder': (88.605, 6.926, -3.842), 'right_elbow': (22.551, 7.422),
         'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(17.9, {
         'spine_lumbar': (2.97, -19.739, 6.346), 'spine_thoracic': (-10.932, -9.341, 7.065),
-        'neck': (3.765, -0.463, -17.331), 'head': (3.926, -0.014),
-        'right_clavicle': (11.088, 5.318), 'right_shoulder': (83.624, 11.63, 2.913),
-        'right_elbow': (22.794, 14.027), 'right_wrist': (-0.418, -28.572),
+        'neck': (5.409, 0.0, -17.505), 'head': (2.318, 0.0), 'right_clavicle': (11.088, 5.318),
+        'right_shoulder': (83.624, 11.63, 2.913), 'right_elbow': (22.794, 14.027),
+        'right_wrist': (-0.418, -28.572),
     })
     human.KeyJoints(18.0, {
         'spine_lumbar': (5.713, -19.945, 3.833), 'spine_thoracic': (-11.699, -10.0, 6.067),
-        'neck': (2.799, -0.464, -15.899), 'head': (2.947, -0.014),
-        'right_clavicle': (21.584, 3.587), 'right_shoulder': (82.782, 17.047, 12.59),
-        'right_elbow': (25.201, 23.476), 'right_wrist': (3.39, -22.349),
+        'neck': (4.02, 0.0, -16.053), 'head': (1.723, 0.0), 'right_clavicle': (21.584, 3.587),
+        'right_shoulder': (82.782, 17.047, 12.59), 'right_elbow': (25.201, 23.476),
+        'right_wrist': (3.39, -22.349),
     })
     human.KeyJoints(18.1, {
         'spine_lumbar': (0.959, -20.0, 4.521), 'spine_thoracic': (-11.449, -8.161, 6.408),
-        'neck': (4.674, -0.403, -13.781), 'head': (4.81, -0.014), 'right_clavicle': (17.691, 4.994),
+        'neck': (6.698, 0.0, -13.908), 'head': (2.871, 0.0), 'right_clavicle': (17.691, 4.994),
         'right_shoulder': (81.205, 12.367, 9.456), 'right_elbow': (23.403, 19.954),
         'right_wrist': (2.234, -25.566),
     })
     human.KeyJoints(18.2, {
         'spine_lumbar': (1.001, -17.902, 8.985), 'spine_thoracic': (-11.199, -1.734, 9.033),
-        'neck': (4.269, -0.435, -15.808), 'head': (4.419, -0.014), 'right_clavicle': (5.247, 7.664),
+        'neck': (6.125, 0.0, -15.959), 'head': (2.625, 0.0), 'right_clavicle': (5.247, 7.664),
         'right_shoulder': (85.095, 7.42, -3.259), 'right_elbow': (21.491, 7.924),
         'right_wrist': (-3.224, -29.929),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'neck': (3.84, 0.0, -16.844), 'head': (1.646, 0.0), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
         'spine_lumbar': (2.335, -18.532, 7.953), 'spine_thoracic': (-10.375, -7.421, 7.98),
-        'neck': (3.645, -0.466, -17.385), 'head': (3.806, -0.014), 'right_clavicle': (6.092, 6.472),
+        'neck': (5.236, 0.0, -17.557), 'head': (2.244, 0.0), 'right_clavicle': (6.092, 6.472),
         'right_shoulder': (85.631, 9.026, -1.723), 'right_elbow': (22.319, 9.512),
         'right_wrist': (-2.39, -29.994),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (4.817, -20.0, 4.438), 'spine_thoracic': (-11.446, -10.0, 6.274),
-        'neck': (3.13, -0.463, -16.274), 'head': (3.282, -0.014), 'right_clavicle': (18.711, 4.07),
+        'neck': (4.496, 0.0, -16.434), 'head': (1.927, 0.0), 'right_clavicle': (18.711, 4.07),
         'right_shoulder': (82.78, 15.457, 10.026), 'right_elbow': (24.405, 20.956),
         'right_wrist': (2.436, -24.445),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (5.233, -19.876, 3.762), 'spine_thoracic': (-11.728, -10.0, 6.048),
-        'neck': (3.013, -0.455, -15.479), 'head': (3.159, -0.014), 'right_clavicle': (21.78, 3.663),
+        'neck': (4.327, 0.0, -15.628), 'head': (1.854, 0.0), 'right_clavicle': (21.78, 3.663),
         'right_shoulder': (82.515, 16.774, 12.839), 'right_elbow': (25.179, 23.648),
         'right_wrist': (3.485, -22.177),
     })
     human.KeyJoints(18.7, {
         'spine_lumbar': (-1.283, -18.974, 7.555), 'spine_thoracic': (-11.378, -2.615, 8.157),
-        'neck': (5.4, -0.396, -14.385), 'head': (5.541, -0.014), 'right_clavicle': (8.48, 7.072),
+        'neck': (7.734, 0.0, -14.517), 'head': (3.314, 0.0), 'right_clavicle': (8.48, 7.072),
         'right_shoulder': (82.48, 7.516, -0.146), 'right_elbow': (20.783, 10.715),
         'right_wrist': (-1.832, -29.985),
     })
     human.KeyJoints(18.8, {
         'spine_lumbar': (2.376, -17.512, 8.895), 'spine_thoracic': (-9.802, -4.314, 8.749),
-        'neck': (3.129, -0.467, -16.636), 'head': (3.283, -0.014), 'right_clavicle': (3.651, 7.476),
+        'neck': (4.493, 0.0, -16.792), 'head': (1.925, 0.0), 'right_clavicle': (3.651, 7.476),
         'right_shoulder': (87.663, 7.374, -3.811), 'right_elbow': (22.256, 7.481),
         'right_wrist': (-3.263, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (2.421, -17.437, 8.613), 'spine_thoracic': (-9.191, -6.129, 8.384),
-        'neck': (2.933, -0.473, -16.863), 'head': (3.088, -0.014), 'right_clavicle': (3.259, 7.208),
+        'neck': (4.21, 0.0, -17.02), 'head': (1.804, 0.0), 'right_clavicle': (3.259, 7.208),
         'right_shoulder': (88.074, 7.234, -3.688), 'right_elbow': (22.481, 7.577),
         'right_wrist': (-3.108, -30.0),
     })
     human.KeyJoints(19.0, {
         'spine_lumbar': (3.382, -19.933, 5.788), 'spine_thoracic': (-11.068, -9.726, 6.801),
-        'neck': (3.658, -0.462, -17.125), 'head': (3.817, -0.014),
-        'right_clavicle': (13.085, 4.958), 'right_shoulder': (83.204, 12.624, 4.803),
-        'right_elbow': (23.132, 15.865), 'right_wrist': (0.37, -27.65),
+        'neck': (5.255, 0.0, -17.297), 'head': (2.252, 0.0), 'right_clavicle': (13.085, 4.958),
+        'right_shoulder': (83.204, 12.624, 4.803), 'right_elbow': (23.132, 15.865),
+        'right_wrist': (0.37, -27.65),
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (5.796, -19.929, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
-        'neck': (2.77, -0.464, -15.865), 'head': (2.919, -0.014), 'right_clavicle': (21.846, 3.545),
+        'neck': (3.98, 0.0, -16.019), 'head': (1.706, 0.0), 'right_clavicle': (21.846, 3.545),
         'right_shoulder': (82.784, 17.194, 12.815), 'right_elbow': (25.269, 23.698),
         'right_wrist': (3.474, -22.151),
     })
     human.KeyJoints(19.2, {
         'spine_lumbar': (-0.444, -19.985, 5.167), 'spine_thoracic': (-11.366, -6.753, 6.757),
-        'neck': (5.188, -0.389, -13.555), 'head': (5.324, -0.014),
-        'right_clavicle': (15.266, 5.607), 'right_shoulder': (81.079, 10.568, 7.078),
-        'right_elbow': (22.431, 17.583), 'right_wrist': (1.286, -27.387),
+        'neck': (7.43, 0.0, -13.679), 'head': (3.184, 0.0), 'right_clavicle': (15.266, 5.607),
+        'right_shoulder': (81.079, 10.568, 7.078), 'right_elbow': (22.431, 17.583),
+        'right_wrist': (1.286, -27.387),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (1.596, -17.773, 9.093), 'spine_thoracic': (-10.977, -2.135, 9.084),
-        'neck': (3.916, -0.446, -16.151), 'right_clavicle': (4.771, 7.685),
+        'neck': (5.62, 0.0, -16.305), 'right_clavicle': (4.771, 7.685),
         'right_shoulder': (85.836, 7.528, -3.565), 'right_elbow': (21.742, 7.677),
         'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'neck': (3.84, 0.0, -16.844), 'head': (1.646, 0.0), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
         'spine_lumbar': (2.44, -18.988, 7.47), 'spine_thoracic': (-10.591, -8.119, 7.682),
-        'neck': (3.755, -0.464, -17.446), 'head': (3.916, -0.014), 'right_clavicle': (7.511, 6.1),
+        'neck': (5.394, 0.0, -17.62), 'head': (2.312, 0.0), 'right_clavicle': (7.511, 6.1),
         'right_shoulder': (84.896, 9.791, -0.438), 'right_elbow': (22.394, 10.765),
         'right_wrist': (-1.844, -29.779),
     })
     human.KeyJoints(19.6, {
         'spine_lumbar': (5.226, -20.0, 4.14), 'spine_thoracic': (-11.544, -10.0, 6.16),
-        'neck': (2.973, -0.463, -16.095), 'head': (3.123, -0.014),
-        'right_clavicle': (20.026, 3.843), 'right_shoulder': (82.774, 16.181, 11.224),
-        'right_elbow': (24.785, 22.13), 'right_wrist': (2.88, -23.504),
+        'neck': (4.27, 0.0, -16.253), 'head': (1.83, 0.0), 'right_clavicle': (20.026, 3.843),
+        'right_shoulder': (82.774, 16.181, 11.224), 'right_elbow': (24.785, 22.13),
+        'right_wrist': (2.88, -23.504),
     })
     human.KeyJoints(19.7, {
         'spine_lumbar': (4.175, -19.9, 3.82), 'spine_thoracic': (-11.667, -9.838, 6.063),
-        'neck': (3.443, -0.441, -14.956), 'head': (3.587, -0.014),
-        'right_clavicle': (21.138, 3.928), 'right_shoulder': (82.1, 15.811, 12.436),
-        'right_elbow': (24.909, 23.122), 'right_wrist': (3.342, -22.649),
+        'neck': (4.944, 0.0, -15.099), 'head': (2.119, 0.0), 'right_clavicle': (21.138, 3.928),
+        'right_shoulder': (82.1, 15.811, 12.436), 'right_elbow': (24.909, 23.122),
+        'right_wrist': (3.342, -22.649),
     })
     human.KeyJoints(19.8, {
         'spine_lumbar': (-0.627, -18.535, 8.207), 'spine_thoracic': (-11.386, -1.939, 8.569),
-        'neck': (5.09, -0.408, -14.916), 'head': (5.235, -0.014), 'right_clavicle': (7.009, 7.376),
+        'neck': (7.295, 0.0, -15.056), 'head': (3.126, 0.0), 'right_clavicle': (7.009, 7.376),
         'right_shoulder': (83.355, 7.345, -1.681), 'right_elbow': (20.77, 9.315),
         'right_wrist': (-2.524, -29.999),
     })
     human.KeyJoints(19.9, {
         'spine_lumbar': (2.454, -17.374, 8.766), 'spine_thoracic': (-9.278, -5.16, 8.572),
-        'neck': (2.894, -0.471, -16.671), 'head': (3.048, -0.014), 'right_clavicle': (3.193, 7.395),
+        'neck': (4.154, 0.0, -16.826), 'head': (1.78, 0.0), 'right_clavicle': (3.193, 7.395),
         'right_shoulder': (88.232, 7.111, -3.854), 'right_elbow': (22.418, 7.426),
         'right_wrist': (-3.202, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (2.349, -17.722, 8.547), 'spine_thoracic': (-9.736, -6.349, 8.355),
-        'neck': (3.248, -0.469, -17.069), 'head': (3.406, -0.014), 'right_clavicle': (3.988, 7.05),
+        'neck': (4.664, 0.0, -17.233), 'right_clavicle': (3.988, 7.05),
         'right_shoulder': (87.185, 7.772, -3.349), 'right_elbow': (22.371, 7.916),
         'right_wrist': (-3.025, -30.0),
     })
     human.KeyJoints(20.1, {
         'spine_lumbar': (3.852, -20.0, 5.273), 'spine_thoracic': (-11.198, -9.942, 6.586),
-        'neck': (3.498, -0.462, -16.838), 'head': (3.655, -0.014),
-        'right_clavicle': (15.102, 4.632), 'right_shoulder': (82.948, 13.62, 6.697),
-        'right_elbow': (23.535, 17.708), 'right_wrist': (1.141, -26.606),
+        'neck': (5.026, 0.0, -17.006), 'head': (2.154, 0.0), 'right_clavicle': (15.102, 4.632),
+        'right_shoulder': (82.948, 13.62, 6.697), 'right_elbow': (23.535, 17.708),
+        'right_wrist': (1.141, -26.606),
     })
     human.KeyJoints(20.2, {
         'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
-        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
-        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
+        'neck': (3.972, 0.0, -16.012), 'head': (1.702, 0.0), 'right_clavicle': (21.898, 3.536),
+        'right_shoulder': (82.785, 17.223, 12.859), 'right_elbow': (25.282, 23.742),
+        'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(20.3, {
         'spine_lumbar': (-1.31, -19.821, 5.934), 'spine_thoracic': (-11.33, -5.198, 7.18),
-        'neck': (5.487, -0.384, -13.623), 'head': (5.623, -0.014),
-        'right_clavicle': (12.746, 6.166), 'right_shoulder': (81.209, 9.101, 4.475),
-        'right_elbow': (21.597, 15.059), 'right_wrist': (0.196, -28.876),
+        'neck': (7.855, 0.0, -13.747), 'head': (3.367, 0.0), 'right_clavicle': (12.746, 6.166),
+        'right_shoulder': (81.209, 9.101, 4.475), 'right_elbow': (21.597, 15.059),
+        'right_wrist': (0.196, -28.876),
     })
     human.KeyJoints(20.4, {
         'spine_lumbar': (1.997, -17.703, 9.06), 'spine_thoracic': (-10.677, -2.726, 9.018),
-        'neck': (3.623, -0.454, -16.358), 'head': (3.777, -0.014), 'right_clavicle': (4.435, 7.635),
+        'neck': (5.202, 0.0, -16.515), 'head': (2.229, 0.0), 'right_clavicle': (4.435, 7.635),
         'right_shoulder': (86.447, 7.525, -3.679), 'right_elbow': (21.917, 7.6),
         'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.748, -6.003, 8.39),
-        'neck': (2.678, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'neck': (3.844, 0.0, -16.845), 'head': (1.647, 0.0), 'right_clavicle': (2.738, 7.313),
         'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
         'spine_lumbar': (2.647, -19.41, 6.926), 'spine_thoracic': (-10.775, -8.784, 7.369),
-        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.183, 5.708),
+        'neck': (5.458, 0.0, -17.612), 'head': (2.339, 0.0), 'right_clavicle': (9.183, 5.708),
         'right_shoulder': (84.209, 10.663, 1.115), 'right_elbow': (22.542, 12.278),
         'right_wrist': (-1.181, -29.307),
     })
     human.KeyJoints(20.7, {
         'spine_lumbar': (5.525, -19.978, 3.946), 'spine_thoracic': (-11.635, -10.0, 6.098),
-        'neck': (2.864, -0.464, -15.979), 'head': (3.014, -0.014),
-        'right_clavicle': (20.986, 3.684), 'right_shoulder': (82.776, 16.713, 12.072),
-        'right_elbow': (25.045, 22.964), 'right_wrist': (3.196, -22.798),
+        'neck': (4.115, 0.0, -16.135), 'head': (1.763, 0.0), 'right_clavicle': (20.986, 3.684),
+        'right_shoulder': (82.776, 16.713, 12.072), 'right_elbow': (25.045, 22.964),
+        'right_wrist': (3.196, -22.798),
     })
     human.KeyJoints(20.8, {
         'spine_lumbar': (2.648, -19.974, 4.054), 'spine_thoracic': (-11.563, -9.25, 6.165),
-        'neck': (4.039, -0.422, -14.332), 'head': (4.179, -0.014), 'right_clavicle': (19.757, 4.39),
+        'neck': (5.795, 0.0, -14.466), 'head': (2.484, 0.0), 'right_clavicle': (19.757, 4.39),
         'right_shoulder': (81.607, 14.261, 11.329), 'right_elbow': (24.308, 21.895),
         'right_wrist': (2.942, -23.816),
     })
     human.KeyJoints(20.9, {
         'spine_lumbar': (0.233, -18.12, 8.716), 'spine_thoracic': (-11.329, -1.596, 8.892),
-        'neck': (4.667, -0.423, -15.393), 'head': (4.815, -0.014), 'right_clavicle': (5.933, 7.596),
+        'neck': (6.693, 0.0, -15.539), 'head': (2.868, 0.0), 'right_clavicle': (5.933, 7.596),
         'right_shoulder': (84.257, 7.329, -2.682), 'right_elbow': (21.174, 8.413),
         'right_wrist': (-2.979, -29.985),
     })
     human.KeyJoints(21.0, {
         'spine_lumbar': (2.481, -17.261, 8.658), 'spine_thoracic': (-8.856, -5.827, 8.428),
-        'neck': (2.72, -0.475, -16.687), 'head': (2.873, -0.014), 'right_clavicle': (2.829, 7.331),
+        'neck': (3.903, 0.0, -16.84), 'head': (1.673, 0.0), 'right_clavicle': (2.829, 7.331),
         'right_shoulder': (88.664, 6.886, -3.881), 'right_elbow': (22.542, 7.386),
         'right_wrist': (-3.151, -29.992),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (2.327, -18.1, 8.373), 'spine_thoracic': (-10.136, -6.759, 8.26),
-        'neck': (3.486, -0.468, -17.331), 'head': (3.646, -0.014), 'right_clavicle': (4.953, 6.804),
+        'neck': (5.006, 0.0, -17.501), 'head': (2.146, 0.0), 'right_clavicle': (4.953, 6.804),
         'right_shoulder': (86.333, 8.392, -2.734), 'right_elbow': (22.324, 8.525),
         'right_wrist': (-2.828, -30.0),
     })
     human.KeyJoints(21.2, {
         'spine_lumbar': (4.34, -20.0, 4.824), 'spine_thoracic': (-11.327, -10.0, 6.419),
-        'neck': (3.315, -0.462, -16.53), 'head': (3.469, -0.014), 'right_clavicle': (17.022, 4.341),
+        'neck': (4.762, 0.0, -16.694), 'head': (2.041, 0.0), 'right_clavicle': (17.022, 4.341),
         'right_shoulder': (82.823, 14.575, 8.474), 'right_elbow': (23.968, 19.441),
         'right_wrist': (1.844, -25.523),
     })
     human.KeyJoints(21.3, {
         'spine_lumbar': (5.719, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.807, -0.463, -15.786), 'head': (2.955, -0.014),
-        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.74, 17.156, 12.873),
-        'right_elbow': (25.254, 23.741), 'right_wrist': (3.499, -22.114),
+        'neck': (4.033, 0.0, -15.939), 'head': (1.728, 0.0), 'right_clavicle': (21.909, 3.562),
+        'right_shoulder': (82.74, 17.156, 12.873), 'right_elbow': (25.254, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(21.4, {
         'spine_lumbar': (-1.531, -19.42, 6.767), 'spine_thoracic': (-11.349, -3.753, 7.671),
-        'neck': (5.537, -0.387, -13.917), 'head': (5.674, -0.014),
-        'right_clavicle': (10.429, 6.663), 'right_shoulder': (81.726, 8.071, 1.997),
-        'right_elbow': (21.025, 12.705), 'right_wrist': (-0.881, -29.851),
+        'neck': (7.927, 0.0, -14.044), 'head': (3.397, 0.0), 'right_clavicle': (10.429, 6.663),
+        'right_shoulder': (81.726, 8.071, 1.997), 'right_elbow': (21.025, 12.705),
+        'right_wrist': (-0.881, -29.851),
     })
     human.KeyJoints(21.5, {
         'spine_lumbar': (2.242, -17.633, 8.997), 'spine_thoracic': (-10.294, -3.471, 8.902),
-        'neck': (3.373, -0.461, -16.539), 'head': (3.527, -0.014), 'right_clavicle': (4.099, 7.556),
+        'neck': (4.843, 0.0, -16.696), 'head': (2.076, 0.0), 'right_clavicle': (4.099, 7.556),
         'right_shoulder': (87.034, 7.517, -3.75), 'right_elbow': (22.077, 7.544),
         'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (2.469, -17.279, 8.628), 'spine_thoracic': (-8.85, -6.03, 8.39),
-        'neck': (2.737, -0.475, -16.734), 'head': (2.891, -0.014), 'right_clavicle': (2.856, 7.29),
+        'neck': (3.928, 0.0, -16.888), 'head': (1.683, 0.0), 'right_clavicle': (2.856, 7.29),
         'right_shoulder': (88.61, 6.923, -3.843), 'right_elbow': (22.552, 7.42),
         'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(21.7, {
         'spine_lumbar': (2.964, -19.735, 6.356), 'spine_thoracic': (-10.93, -9.333, 7.07),
-        'neck': (3.766, -0.463, -17.333), 'head': (3.927, -0.014),
-        'right_clavicle': (11.055, 5.324), 'right_shoulder': (83.632, 11.613, 2.882),
-        'right_elbow': (22.789, 13.997), 'right_wrist': (-0.431, -28.586),
+        'neck': (5.411, 0.0, -17.508), 'head': (2.319, 0.0), 'right_clavicle': (11.055, 5.324),
+        'right_shoulder': (83.632, 11.613, 2.882), 'right_elbow': (22.789, 13.997),
+        'right_wrist': (-0.431, -28.586),
     })
     human.KeyJoints(21.8, {
         'spine_lumbar': (5.711, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
-        'neck': (2.8, -0.464, -15.899), 'head': (2.948, -0.014), 'right_clavicle': (21.577, 3.588),
+        'neck': (4.021, 0.0, -16.054), 'head': (1.723, 0.0), 'right_clavicle': (21.577, 3.588),
         'right_shoulder': (82.781, 17.043, 12.584), 'right_elbow': (25.199, 23.47),
         'right_wrist': (3.388, -22.355),
     })
     human.KeyJoints(21.9, {
         'spine_lumbar': (0.987, -20.0, 4.512), 'spine_thoracic': (-11.45, -8.183, 6.403),
-        'neck': (4.663, -0.403, -13.789), 'head': (4.8, -0.014), 'right_clavicle': (17.73, 4.983),
+        'neck': (6.684, 0.0, -13.916), 'head': (2.864, 0.0), 'right_clavicle': (17.73, 4.983),
         'right_shoulder': (81.21, 12.399, 9.493), 'right_elbow': (23.42, 19.991),
         'right_wrist': (2.249, -25.533),
     })
     human.KeyJoints(22.0, {
         'spine_lumbar': (0.989, -17.904, 8.981), 'spine_thoracic': (-11.202, -1.728, 9.031),
-        'neck': (4.275, -0.435, -15.801), 'head': (4.426, -0.014), 'right_clavicle': (5.256, 7.663),
+        'neck': (6.134, 0.0, -15.951), 'head': (2.629, 0.0), 'right_clavicle': (5.256, 7.663),
         'right_shoulder': (85.082, 7.417, -3.251), 'right_elbow': (21.486, 7.93),
         'right_wrist': (-3.221, -29.931),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
+        'neck': (3.84, 0.0, -16.844), 'head': (1.646, 0.0), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (2.334, -18.525, 7.96), 'spine_thoracic': (-10.371, -7.409, 7.985),
-        'neck': (3.643, -0.466, -17.384), 'head': (3.803, -0.014), 'right_clavicle': (6.07, 6.478),
+        'neck': (5.232, 0.0, -17.555), 'head': (2.242, 0.0), 'right_clavicle': (6.07, 6.478),
         'right_shoulder': (85.643, 9.014, -1.742), 'right_elbow': (22.318, 9.493),
         'right_wrist': (-2.399, -29.995),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (4.809, -20.0, 4.443), 'spine_thoracic': (-11.444, -10.0, 6.277),
-        'neck': (3.133, -0.462, -16.278), 'head': (3.285, -0.014),
-        'right_clavicle': (18.686, 4.075), 'right_shoulder': (82.78, 15.443, 10.003),
-        'right_elbow': (24.398, 20.934), 'right_wrist': (2.427, -24.462),
+        'neck': (4.501, 0.0, -16.438), 'head': (1.929, 0.0), 'right_clavicle': (18.686, 4.075),
+        'right_shoulder': (82.78, 15.443, 10.003), 'right_elbow': (24.398, 20.934),
+        'right_wrist': (2.427, -24.462),
     })
     human.KeyJoints(22.4, {
         'spine_lumbar': (5.246, -19.876, 3.763), 'spine_thoracic': (-11.728, -10.0, 6.048),
-        'neck': (3.007, -0.456, -15.487), 'head': (3.154, -0.014), 'right_clavicle': (21.785, 3.66),
+        'neck': (4.319, 0.0, -15.636), 'head': (1.851, 0.0), 'right_clavicle': (21.785, 3.66),
         'right_shoulder': (82.521, 16.784, 12.841), 'right_elbow': (25.181, 23.651),
         'right_wrist': (3.486, -22.175),
     })
     human.KeyJoints(22.5, {
         'spine_lumbar': (-1.293, -18.981, 7.543), 'spine_thoracic': (-11.378, -2.632, 8.149),
-        'neck': (5.405, -0.395, -14.375), 'head': (5.546, -0.014), 'right_clavicle': (8.509, 7.066),
+        'neck': (7.74, 0.0, -14.508), 'head': (3.317, 0.0), 'right_clavicle': (8.509, 7.066),
         'right_shoulder': (82.466, 7.523, -0.113), 'right_elbow': (20.786, 10.745),
         'right_wrist': (-1.818, -29.985),
     })
     human.KeyJoints(22.6, {
         'spine_lumbar': (2.374, -17.515, 8.897), 'spine_thoracic': (-9.811, -4.3, 8.752),
-        'neck': (3.134, -0.467, -16.635), 'head': (3.288, -0.014), 'right_clavicle': (3.659, 7.477),
+        'neck': (4.499, 0.0, -16.791), 'head': (1.928, 0.0), 'right_clavicle': (3.659, 7.477),
         'right_shoulder': (87.653, 7.378, -3.81), 'right_elbow': (22.253, 7.482),
         'right_wrist': (-3.264, -29.927),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (2.424, -17.427, 8.614), 'spine_thoracic': (-9.169, -6.122, 8.384),
-        'neck': (2.92, -0.473, -16.855), 'head': (3.075, -0.014), 'right_clavicle': (3.232, 7.214),
+        'neck': (4.192, 0.0, -17.012), 'head': (1.797, 0.0), 'right_clavicle': (3.232, 7.214),
         'right_shoulder': (88.109, 7.214, -3.699), 'right_elbow': (22.485, 7.566),
         'right_wrist': (-3.11, -30.0),
     })
     human.KeyJoints(22.8, {
         'spine_lumbar': (3.345, -19.922, 5.833), 'spine_thoracic': (-11.057, -9.701, 6.821),
-        'neck': (3.669, -0.462, -17.145), 'head': (3.828, -0.014),
-        'right_clavicle': (12.917, 4.987), 'right_shoulder': (83.233, 12.541, 4.644),
-        'right_elbow': (23.101, 15.711), 'right_wrist': (0.304, -27.732),
+        'neck': (5.271, 0.0, -17.318), 'head': (2.259, 0.0), 'right_clavicle': (12.917, 4.987),
+        'right_shoulder': (83.233, 12.541, 4.644), 'right_elbow': (23.101, 15.711),
+        'right_wrist': (0.304, -27.732),
     })
     human.KeyJoints(22.9, {
         'spine_lumbar': (5.791, -19.93, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
-        'neck': (2.772, -0.464, -15.867), 'head': (2.921, -0.014),
-        'right_clavicle': (21.829, 3.547), 'right_shoulder': (82.784, 17.184, 12.8),
-        'right_elbow': (25.264, 23.683), 'right_wrist': (3.469, -22.164),
+        'neck': (3.982, 0.0, -16.021), 'head': (1.707, 0.0), 'right_clavicle': (21.829, 3.547),
+        'right_shoulder': (82.784, 17.184, 12.8), 'right_elbow': (25.264, 23.683),
+        'right_wrist': (3.469, -22.164),
     })
     human.KeyJoints(23.0, {
         'spine_lumbar': (1.247, -18.506, 5.279), 'spine_thoracic': (-11.445, -6.228, 6.787),
-        'neck': (4.393, -0.394, -12.678), 'head': (4.522, -0.014),
-        'right_clavicle': (15.473, 5.501), 'right_shoulder': (81.453, 11.171, 9.068),
-        'right_elbow': (26.394, 19.142), 'right_wrist': (1.979, -27.249),
+        'neck': (6.294, 0.0, -12.789), 'head': (2.698, 0.0), 'right_clavicle': (15.473, 5.501),
+        'right_shoulder': (81.453, 11.171, 9.068), 'right_elbow': (26.394, 19.142),
+        'right_wrist': (1.979, -27.249),
     })
     human.KeyJoints(23.1, {
         'spine_lumbar': (6.023, -14.503, 9.989), 'spine_thoracic': (-10.636, -0.582, 9.79),
-        'neck': (1.622, -0.465, -14.017), 'head': (1.755, -0.014), 'right_clavicle': (4.746, 8.229),
+        'neck': (2.326, 0.0, -14.13), 'head': (0.997, 0.0), 'right_clavicle': (4.746, 8.229),
         'right_shoulder': (86.389, 7.926, 1.316), 'right_elbow': (31.724, 11.235),
         'right_wrist': (-1.603, -29.822),
     })
@@ -1250,29 +1248,29 @@ def remove_access_panel():
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (0.163, -0.504, -14.994), 'head': (0.295, -0.015), 'right_clavicle': (2.715, 7.9),
+        'neck': (0.234, 0.0, -14.844), 'head': (0.1, 0.0), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.4)
-    human.KeyJoints(23.3, {'neck': (1.603, -0.622, -16.084), 'head': (0.903, -0.017)})
-    human.KeyJoints(23.4, {'neck': (11.063, -1.399, -23.249), 'head': (4.896, -0.03)})
+    human.KeyJoints(23.3, {'neck': (1.612, 0.0, -15.934), 'head': (0.691, 0.0)})
+    human.KeyJoints(23.4, {'neck': (10.665, 0.0, -23.093), 'head': (4.571, 0.0)})
     human.KeyJoints(23.5, {
-        'neck': (23.854, -2.45, -32.937), 'head': (10.295, -0.066),
+        'neck': (22.907, 0.0, -32.774), 'head': (9.817, 0.0),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
-        'neck': (33.445, -3.238, -40.2), 'head': (14.344, -0.131),
+        'neck': (32.085, 0.0, -40.032), 'head': (13.751, 0.0),
         'right_shoulder': (88.391, 7.516, 0.971), 'right_elbow': (33.028, 10.972),
         'right_wrist': (-1.417, -29.538),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=23.651001, duration=10.483707)
     human.KeyJoints(23.7, {
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659),
+        'neck': (33.573, 0.0, -41.209), 'head': (14.388, 0.0),
         'right_shoulder': (80.945, 9.225, -0.267), 'right_elbow': (33.721, 10.404),
         'right_wrist': (-1.811, -26.564),
     })
@@ -1302,21 +1300,21 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
         'spine_lumbar': (7.145, -13.81, 9.592), 'spine_thoracic': (-8.438, -4.43, 9.159),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.671, 7.935),
+        'neck': (33.544, 0.0, -41.212), 'head': (14.376, 0.0), 'right_clavicle': (2.671, 7.935),
         'right_shoulder': (18.734, 33.86, -16.638), 'right_elbow': (36.524, 2.901),
         'right_wrist': (-6.344, -4.665),
     })
     human.KeyJoints(24.4, {
         'spine_lumbar': (7.835, -11.69, 9.748), 'spine_thoracic': (-8.571, -4.151, 9.296),
-        'neck': (34.537, -3.025, -41.514), 'head': (14.505, -0.736),
-        'right_clavicle': (5.261, 9.241), 'right_shoulder': (16.96, 39.323, -11.452),
-        'right_elbow': (34.325, 8.457), 'right_wrist': (-6.21, 2.72),
+        'neck': (32.692, 0.0, -41.491), 'head': (14.011, 0.0), 'right_clavicle': (5.261, 9.241),
+        'right_shoulder': (16.96, 39.323, -11.452), 'right_elbow': (34.325, 8.457),
+        'right_wrist': (-6.21, 2.72),
     })
     human.KeyJoints(24.5, {
         'spine_lumbar': (9.908, -5.658, 10.196), 'spine_thoracic': (-9.437, -3.747, 9.709),
-        'neck': (33.385, -3.808, -41.718), 'head': (13.462, -0.956),
-        'right_clavicle': (18.934, 12.501), 'right_shoulder': (13.316, 46.481, 2.372),
-        'right_elbow': (37.897, 25.2), 'right_wrist': (-9.153, 9.032),
+        'neck': (30.488, 0.0, -41.534), 'head': (13.066, 0.0), 'right_clavicle': (18.934, 12.501),
+        'right_shoulder': (13.316, 46.481, 2.372), 'right_elbow': (37.897, 25.2),
+        'right_wrist': (-9.153, 9.032),
     })
     human.KeyJoints(24.6, {
         'right_clavicle': (22.165, 9.571), 'right_shoulder': (13.489, 42.265, 4.857),
@@ -1705,44 +1703,44 @@ def remove_access_panel():
     })
     human.KeyJoints(33.8, {
         'spine_lumbar': (9.914, -5.64, 10.197), 'spine_thoracic': (-9.44, -3.745, 9.71),
-        'neck': (33.38, -3.811, -41.718), 'head': (13.458, -0.957),
-        'right_clavicle': (21.577, 12.384), 'right_shoulder': (13.404, 45.152, 4.405),
-        'right_elbow': (38.499, 26.821), 'right_wrist': (-9.079, 6.993),
+        'neck': (30.481, 0.0, -41.533), 'head': (13.063, 0.0), 'right_clavicle': (21.577, 12.384),
+        'right_shoulder': (13.404, 45.152, 4.405), 'right_elbow': (38.499, 26.821),
+        'right_wrist': (-9.079, 6.993),
     })
     human.KeyJoints(33.9, {
         'spine_lumbar': (8.747, -9.504, 9.818), 'spine_thoracic': (-8.703, -3.897, 9.344),
-        'neck': (34.043, -3.378, -41.694), 'head': (14.065, -0.841),
-        'right_clavicle': (15.659, 3.016), 'right_shoulder': (14.99, 33.194, -1.308),
-        'right_elbow': (41.342, 15.492), 'right_wrist': (-6.576, 3.128),
+        'neck': (31.681, 0.0, -41.619), 'head': (13.577, 0.0), 'right_clavicle': (15.659, 3.016),
+        'right_shoulder': (14.99, 33.194, -1.308), 'right_elbow': (41.342, 15.492),
+        'right_wrist': (-6.576, 3.128),
     })
     human.KeyJoints(34.0, {
         'spine_lumbar': (7.268, -13.63, 9.489), 'spine_thoracic': (-8.414, -4.42, 9.056),
-        'neck': (34.862, -2.662, -41.06), 'head': (14.888, -0.675),
-        'right_clavicle': (4.625, 6.234), 'right_shoulder': (20.444, 31.775, -13.992),
-        'right_elbow': (35.068, 2.66), 'right_wrist': (-4.816, -3.658),
+        'neck': (33.374, 0.0, -41.093), 'head': (14.303, 0.0), 'right_clavicle': (4.625, 6.234),
+        'right_shoulder': (20.444, 31.775, -13.992), 'right_elbow': (35.068, 2.66),
+        'right_wrist': (-4.816, -3.658),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
     human.KeyJoints(34.1, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
+        'neck': (33.573, 0.0, -41.209), 'head': (14.388, 0.0), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.134708, duration=0.321213)
-    human.KeyJoints(34.2, {'neck': (33.84, -2.443, -37.33), 'head': (14.204, -0.599)})
-    human.KeyJoints(34.3, {'neck': (29.35, -1.779, -22.32), 'head': (11.123, -0.369)})
+    human.LookAt((20.0, 105.0, 112.0), start=34.134708, duration=0.32141)
+    human.KeyJoints(34.2, {'neck': (32.345, 0.0, -37.31), 'head': (13.862, 0.0)})
+    human.KeyJoints(34.3, {'neck': (27.591, 0.0, -22.218)})
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
-        'neck': (25.043, -1.141, -7.923), 'head': (8.169, -0.148),
+        'neck': (23.028, 0.0, -7.729), 'head': (9.869, 0.0),
         'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=12.263281)
+    human.LookAt((20.0, 105.0, 112.0), start=34.456118, duration=12.263085)
     human.KeyJoints(34.5, {
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'neck': (22.101, 0.0, -4.786), 'head': (9.472, 0.0),
         'right_shoulder': (19.964, 32.271, -15.376), 'right_elbow': (36.394, 3.567),
         'right_wrist': (-6.093, -5.458),
     })
@@ -2254,26 +2252,26 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=46.647203, duration=0.072)
     human.KeyJoints(46.7, {
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'neck': (22.101, 0.0, -4.786), 'head': (9.472, 0.0),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.719203, duration=0.293772)
-    human.KeyJoints(46.8, {'neck': (23.902, -1.671, -10.227)})
-    human.KeyJoints(46.9, {'neck': (23.194, -3.393, -23.864)})
+    human.LookAt((0.0, 120.0, 110.0), start=46.719203, duration=0.291317)
+    human.KeyJoints(46.8, {'neck': (21.463, 0.0, -9.939), 'head': (9.198, 0.0)})
+    human.KeyJoints(46.9, {'neck': (19.804, 0.0, -23.344), 'head': (8.487, 0.0)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     human.KeyJoints(47.0, {
-        'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
+        'neck': (18.723, 0.0, -32.076), 'head': (8.024, 0.0),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=47.012974, duration=0.836663)
+    human.LookAt((0.0, 120.0, 110.0), start=47.010519, duration=0.839119)
     human.KeyJoints(47.1, {
-        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.538, 2.746, 10.535),
+        'neck': (18.71, 0.0, -32.181), 'right_shoulder': (56.538, 2.746, 10.535),
         'right_elbow': (33.443, 18.5), 'right_wrist': (-1.452, -21.083),
         'left_shoulder': (10.301, 4.909, 11.547), 'left_elbow': (34.041, 17.211),
         'left_wrist': (0.036, -0.141),
@@ -2306,29 +2304,29 @@ def remove_access_panel():
     })
     human.KeyJoints(47.6, {
         'spine_lumbar': (11.067, -12.799, 8.735), 'spine_thoracic': (-10.907, -5.193, 8.219),
-        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
-        'right_clavicle': (4.427, 8.596), 'right_shoulder': (34.695, 29.71, -6.322),
-        'right_elbow': (84.737, 24.203), 'right_wrist': (-14.884, -18.666),
-        'left_clavicle': (-0.981, 1.604), 'left_shoulder': (76.624, -26.231, 14.695),
-        'left_elbow': (22.466, 18.031), 'left_wrist': (1.166, -5.055),
+        'neck': (18.71, 0.0, -32.181), 'head': (8.019, 0.0), 'right_clavicle': (4.427, 8.596),
+        'right_shoulder': (34.695, 29.71, -6.322), 'right_elbow': (84.737, 24.203),
+        'right_wrist': (-14.884, -18.666), 'left_clavicle': (-0.981, 1.604),
+        'left_shoulder': (76.624, -26.231, 14.695), 'left_elbow': (22.466, 18.031),
+        'left_wrist': (1.166, -5.055),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(47.7, {
         'spine_lumbar': (15.079, -11.875, 7.906), 'spine_thoracic': (-13.456, -6.008, 7.31),
-        'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
-        'right_clavicle': (6.163, 9.359), 'right_shoulder': (34.342, 33.723, -8.895),
-        'right_elbow': (89.232, 24.725), 'right_wrist': (-16.126, -18.396),
-        'left_clavicle': (-1.998, 3.222), 'left_shoulder': (85.821, -28.561, 14.7),
-        'left_elbow': (21.783, 18.131), 'left_wrist': (1.0, -5.384),
+        'neck': (18.141, 0.0, -29.398), 'right_clavicle': (6.163, 9.359),
+        'right_shoulder': (34.342, 33.723, -8.895), 'right_elbow': (89.232, 24.725),
+        'right_wrist': (-16.126, -18.396), 'left_clavicle': (-1.998, 3.222),
+        'left_shoulder': (85.821, -28.561, 14.7), 'left_elbow': (21.783, 18.131),
+        'left_wrist': (1.0, -5.384),
     })
     human.KeyJoints(47.8, {
         'spine_lumbar': (16.919, -11.464, 7.528), 'spine_thoracic': (-14.628, -6.385, 6.895),
-        'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
-        'right_clavicle': (6.959, 9.713), 'right_shoulder': (34.493, 35.167, -9.809),
-        'right_elbow': (90.627, 24.89), 'right_wrist': (-16.515, -18.3),
-        'left_clavicle': (-2.466, 3.964), 'left_shoulder': (89.145, -29.127, 14.646),
-        'left_elbow': (21.625, 18.167), 'left_wrist': (0.9, -5.469),
+        'neck': (17.536, 0.0, -30.925), 'right_clavicle': (6.959, 9.713),
+        'right_shoulder': (34.493, 35.167, -9.809), 'right_elbow': (90.627, 24.89),
+        'right_wrist': (-16.515, -18.3), 'left_clavicle': (-2.466, 3.964),
+        'left_shoulder': (89.145, -29.127, 14.646), 'left_elbow': (21.625, 18.167),
+        'left_wrist': (0.9, -5.469),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=47.849638, duration=0.072)
@@ -2336,7 +2334,7 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=47.849638, duration=0.072)
     human.KeyRoot(47.9, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
+        'neck': (16.944, 0.0, -29.941), 'head': (7.262, 0.0), 'right_elbow': (90.842, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
@@ -2346,28 +2344,26 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
     human.KeyRoot(48.0, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
-        'head': (5.153, -0.373), 'right_shoulder': (34.395, 35.22, -9.877),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (13.984, 0.0, -24.711),
+        'head': (6.033, 0.0), 'right_shoulder': (34.395, 35.22, -9.877),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
     human.KeyRoot(48.1, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167),
-        'right_hip': (7.244, -0.536, -2.481), 'right_knee': (14.727,),
-        'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517), 'left_knee': (18.046,),
-        'left_ankle': (7.602, 0.86),
+        'neck': (6.008, 0.0, -10.617), 'head': (2.609, 0.0), 'right_hip': (7.244, -0.536, -2.481),
+        'right_knee': (14.727,), 'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517),
+        'left_knee': (18.046,), 'left_ankle': (7.602, 0.86),
     })
     human.KeyRoot(48.2, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
-        'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
-        'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
-        'left_ankle': (16.48, 1.57),
+        'neck': (0.18, 0.0, -0.317), 'head': (0.106, 0.0), 'right_hip': (6.792, -0.973, -5.207),
+        'right_knee': (14.607,), 'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279),
+        'left_knee': (34.508,), 'left_ankle': (16.48, 1.57),
     })
     human.KeyRoot(48.3, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
+        'neck': (-0.056, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
         'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
@@ -2420,15 +2416,15 @@ def remove_access_panel():
     })
     human.KeyRoot(49.2, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'neck': (0.0, 0.0, 0.0), 'right_wrist': (-16.568, -18.281),
-        'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
-        'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
-        'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
+        'right_wrist': (-16.568, -18.281), 'right_hip': (6.019, -3.052, 20.194),
+        'right_knee': (14.816,), 'right_ankle': (8.118, -0.774),
+        'left_hip': (14.717, -4.667, 14.198), 'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
     human.KeyRoot(49.3, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
     human.KeyJoints(49.3, {
-        'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
-        'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.405, -2.734, 14.597),
+        'right_ankle': (8.627, -1.273), 'left_hip': (16.025, -6.263, 19.637),
+        'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
     human.KeyRoot(49.4, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
     human.KeyJoints(49.4, {
@@ -2644,20 +2640,20 @@ def remove_access_panel():
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=53.069006, duration=0.32772)
+    human.LookAt((160.0, 90.0, 20.0), start=53.069006, duration=0.3125)
     human.KeyRoot(53.1, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(53.1, {
-        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
+        'neck': (0.965, 0.93, -0.697), 'head': (0.413, 0.31), 'right_hip': (3.129, 0.0, 0.0),
         'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
         'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
     human.KeyJoints(53.2, {
-        'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
+        'neck': (13.294, 12.819, -9.612), 'head': (5.697, 4.273), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
     human.KeyJoints(53.3, {
-        'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'neck': (29.099, 28.06, -21.04), 'head': (12.471, 9.353),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -2666,63 +2662,60 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
+    human.LookAt((160.0, 90.0, 20.0), start=53.381506, duration=0.648558)
     human.KeyJoints(53.4, {
-        'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
-        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
-        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
+        'neck': (35.0, 33.75, -25.307), 'head': (15.0, 11.25),
+        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.001, 24.925),
+        'right_wrist': (-16.585, -18.209), 'left_shoulder': (88.17, -28.972, 15.116),
+        'left_elbow': (22.766, 17.988), 'left_wrist': (-0.043, -5.344),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.5, {
-        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
-        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
-        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
+        'right_shoulder': (27.639, 32.324, -8.721), 'right_elbow': (93.569, 25.223),
+        'right_wrist': (-17.032, -17.409), 'left_shoulder': (75.654, -26.716, 20.134),
+        'left_elbow': (36.017, 16.066), 'left_wrist': (-10.295, -3.741),
     })
     human.KeyJoints(53.6, {
-        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
-        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
-        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
+        'right_shoulder': (11.315, 26.209, -7.116), 'right_elbow': (101.099, 25.842),
+        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.757, 30.226),
+        'left_elbow': (57.105, 12.072), 'left_wrist': (-30.801, -1.332),
     })
     human.KeyJoints(53.7, {
-        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
-        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
-        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
+        'right_shoulder': (-11.077, 17.004, -3.453), 'right_elbow': (109.972, 26.53),
+        'right_wrist': (-20.576, -13.675), 'left_shoulder': (29.481, -15.175, 40.966),
+        'left_elbow': (78.739, 7.627), 'left_wrist': (-52.923, 0.912),
     })
     human.KeyJoints(53.8, {
-        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
-        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
-        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
+        'right_shoulder': (-29.508, 7.035, 3.903), 'right_elbow': (112.29, 26.906),
+        'right_wrist': (-20.715, -12.808), 'left_shoulder': (9.251, -6.256, 49.537),
+        'left_elbow': (94.695, 3.929), 'left_wrist': (-68.979, 2.456),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.9, {
-        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
-        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
-        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
+        'right_shoulder': (-37.765, 0.311, 11.585), 'right_elbow': (110.53, 26.669),
+        'right_wrist': (-19.401, -12.719), 'left_shoulder': (0.497, 9.024, 57.122),
+        'left_elbow': (103.608, 5.61), 'left_wrist': (-70.0, 4.728),
     })
     human.KeyJoints(54.0, {
-        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
-        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
-        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
+        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.535),
+        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-2.265, 13.728, 57.742),
+        'left_elbow': (104.423, 10.561), 'left_wrist': (-70.0, 10.004),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
-    human.KeyJoints(54.1, {
-        'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
-        'left_wrist': (-70.0, 7.97),
-    })
+    human.KeyJoints(54.1, {'left_shoulder': (-1.023, 15.115, 59.904), 'left_wrist': (-70.0, 8.226)})
     human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(54.102065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
-        'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.045),
-        'left_wrist': (-70.0, 8.11), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'neck': (35.0, 33.75, -25.307), 'head': (15.0, 11.25), 'right_clavicle': (6.997, 9.73),
+        'right_shoulder': (-40.328, -1.598, 14.492), 'right_elbow': (110.63, 26.533),
+        'right_wrist': (-18.934, -12.504), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (-0.811, 15.328, 60.219), 'left_elbow': (105.421, 9.029),
+        'left_wrist': (-70.0, 8.075), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -92,33 +92,32 @@ def remove_access_panel_cad():
         'left_ankle': (7.432, 0.422),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.270061)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.271024)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'neck': (0.002, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (0.349, -0.002, -6.87), 'head': (0.352, 0.0)})
+    human.KeyJoints(1.4, {'neck': (0.523, 0.0, -7.146), 'head': (0.224, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (0.899, -0.005, -17.64), 'head': (0.906, 0.0),
+        'neck': (1.328, 0.0, -18.153), 'head': (0.569, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.564798, duration=10.899115)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.56576, duration=10.898153)
     human.KeyJoints(1.6, {
-        'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
-        'right_shoulder': (8.653, 5.731, 11.452), 'right_elbow': (34.378, 17.184),
-        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'neck': (1.559, 0.0, -21.307), 'right_shoulder': (8.653, 5.731, 11.452),
+        'right_elbow': (34.378, 17.184), 'right_wrist': (-0.001, -0.023),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'right_shoulder': (10.491, 5.764, 11.216), 'right_elbow': (34.409, 17.028),
-        'right_wrist': (-0.021, -0.728),
+        'head': (0.668, 0.0), 'right_shoulder': (10.491, 5.764, 11.216),
+        'right_elbow': (34.409, 17.028), 'right_wrist': (-0.021, -0.728),
     })
     human.KeyJoints(1.8, {
         'right_shoulder': (16.424, 5.872, 10.456), 'right_elbow': (34.507, 16.524),
@@ -144,41 +143,41 @@ def remove_access_panel_cad():
         'right_elbow': (34.914, 12.016), 'right_wrist': (-0.824, -22.912),
     })
     human.KeyJoints(2.3, {
-        'neck': (1.097, -0.004, -21.296), 'head': (1.103, 0.0),
+        'neck': (1.559, 0.0, -21.307), 'head': (0.668, 0.0),
         'right_shoulder': (80.819, 8.917, 1.485), 'right_elbow': (34.438, 10.982),
         'right_wrist': (-1.179, -26.858),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
         'spine_lumbar': (5.297, 0.707, 1.239), 'spine_thoracic': (-1.433, -1.403, 1.227),
-        'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (2.024, 0.686),
+        'neck': (0.258, 0.0, -22.748), 'head': (0.111, 0.0), 'right_clavicle': (2.024, 0.686),
         'right_shoulder': (88.233, 10.136, 0.119), 'right_elbow': (33.922, 10.309),
         'right_wrist': (-1.481, -29.192),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.008, 0.802, 1.404), 'spine_thoracic': (-1.636, -1.595, 1.391),
-        'neck': (-0.238, -0.596, -24.912), 'head': (-0.364, -0.001),
-        'right_clavicle': (2.301, 0.776), 'right_shoulder': (90.754, 10.587, -0.359),
-        'right_elbow': (33.725, 10.079), 'right_wrist': (-1.591, -29.967),
+        'neck': (-0.724, 0.0, -24.774), 'head': (-0.241, 0.0), 'right_clavicle': (2.301, 0.776),
+        'right_shoulder': (90.754, 10.587, -0.359), 'right_elbow': (33.725, 10.079),
+        'right_wrist': (-1.591, -29.967),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
     human.KeyJoints(2.6, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-0.57, -0.745, -26.12), 'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
+        'neck': (-1.343, 0.0, -25.932), 'head': (-0.448, 0.0), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.923, 10.607, -0.381), 'right_elbow': (33.613, 10.07),
         'right_wrist': (-1.588, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
         'spine_lumbar': (6.794, 0.97, 1.355), 'spine_thoracic': (-2.244, -2.214, 1.404),
-        'neck': (-0.559, -0.746, -26.419), 'right_clavicle': (10.217, 0.324),
+        'neck': (-1.335, 0.0, -26.236), 'right_clavicle': (10.217, 0.324),
         'right_shoulder': (85.803, 16.166, 1.682), 'right_elbow': (34.773, 13.168),
         'right_wrist': (-1.431, -23.896),
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (8.599, 1.375, 1.206), 'spine_thoracic': (-3.743, -3.702, 1.404),
-        'neck': (-0.508, -0.74, -27.1), 'right_clavicle': (27.454, 5.362),
+        'neck': (-1.266, 0.0, -26.933), 'right_clavicle': (27.454, 5.362),
         'right_shoulder': (74.54, 35.685, 6.313), 'right_elbow': (33.116, 21.17),
         'right_wrist': (-1.245, -1.792),
     })
@@ -233,9 +232,8 @@ def remove_access_panel_cad():
         'right_elbow': (41.058, 17.665), 'right_wrist': (-2.553, -10.498),
     })
     human.KeyJoints(4.1, {
-        'head': (-0.672, -0.002), 'right_clavicle': (14.663, -7.239),
-        'right_shoulder': (79.085, 5.266, -3.785), 'right_elbow': (44.272, 5.6),
-        'right_wrist': (-5.64, -29.553),
+        'right_clavicle': (14.663, -7.239), 'right_shoulder': (79.085, 5.266, -3.785),
+        'right_elbow': (44.272, 5.6), 'right_wrist': (-5.64, -29.553),
     })
     human.KeyJoints(4.2, {
         'right_clavicle': (5.608, -2.632), 'right_shoulder': (87.277, 7.326, -2.676),
@@ -570,73 +568,73 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (8.55, 1.364, 1.21), 'spine_thoracic': (-3.702, -3.662, 1.404),
-        'neck': (-0.509, -0.74, -27.081), 'right_clavicle': (28.433, 4.747),
+        'neck': (-1.267, 0.0, -26.914), 'right_clavicle': (28.433, 4.747),
         'right_shoulder': (73.246, 35.233, 5.966), 'right_elbow': (34.079, 20.812),
         'right_wrist': (-1.567, -1.863),
     })
     human.KeyJoints(12.2, {
         'spine_lumbar': (7.12, 1.055, 1.315), 'spine_thoracic': (-2.524, -2.487, 1.392),
-        'neck': (-0.547, -0.743, -26.505), 'head': (-0.709, -0.002),
-        'right_clavicle': (20.703, -6.627), 'right_shoulder': (74.587, 12.535, 0.799),
-        'right_elbow': (44.61, 11.274), 'right_wrist': (-4.183, -23.33),
+        'neck': (-1.317, 0.0, -26.325), 'right_clavicle': (20.703, -6.627),
+        'right_shoulder': (74.587, 12.535, 0.799), 'right_elbow': (44.61, 11.274),
+        'right_wrist': (-4.183, -23.33),
     })
     human.KeyJoints(12.3, {
         'spine_lumbar': (6.143, 0.851, 1.394), 'spine_thoracic': (-1.704, -1.654, 1.386),
-        'neck': (-0.59, -0.752, -26.103), 'right_clavicle': (11.533, -1.085),
+        'neck': (-1.379, 0.0, -25.911), 'right_clavicle': (11.533, -1.085),
         'right_shoulder': (83.952, 9.213, -4.868), 'right_elbow': (38.557, 5.748),
         'right_wrist': (-5.108, -29.99),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.391913, duration=0.072)
     human.KeyJoints(12.4, {
-        'spine_lumbar': (6.038, 0.806, 1.411), 'neck': (-0.57, -0.745, -26.12),
+        'spine_lumbar': (6.038, 0.806, 1.411), 'neck': (-1.343, 0.0, -25.932),
         'right_clavicle': (2.313, 0.78), 'right_shoulder': (90.86, 10.606, -0.379),
         'right_elbow': (33.717, 10.07), 'right_wrist': (-1.596, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.336746)
-    human.KeyJoints(12.5, {'neck': (-0.59, -0.723, -24.645), 'head': (-0.742, -0.002)})
-    human.KeyJoints(12.6, {'neck': (-0.796, -0.509, -9.61)})
+    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.338337)
+    human.KeyJoints(12.5, {'neck': (-1.357, 0.0, -24.47), 'head': (-0.452, 0.0)})
+    human.KeyJoints(12.6, {'neck': (-1.494, 0.0, -9.548)})
     human.KeyJoints(12.7, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-1.067, -0.228, 10.105), 'right_clavicle': (2.313, 0.78),
+        'neck': (-1.676, 0.0, 10.102), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.86, 10.606, -0.379),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
         'spine_lumbar': (5.977, 0.616, 1.52), 'spine_thoracic': (-1.72, -1.638, 1.501),
-        'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.883),
+        'neck': (-1.769, 0.0, 20.188), 'head': (-0.59, 0.0), 'right_clavicle': (2.31, 0.883),
         'right_shoulder': (90.793, 10.502, -0.325), 'right_elbow': (33.752, 10.092),
         'right_wrist': (-1.58, -29.964),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.800659, duration=10.447749)
+    human.LookAt((20.0, 135.0, 111.6), start=12.80225, duration=10.446157)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.443, -1.075, 2.487), 'spine_thoracic': (-2.396, -1.949, 2.419),
-        'neck': (-0.659, -0.174, 13.393), 'head': (-0.592, -0.003),
-        'right_clavicle': (2.283, 1.807), 'right_shoulder': (90.198, 9.569, 0.159),
-        'right_elbow': (34.063, 10.291), 'right_wrist': (-1.445, -29.642),
+        'neck': (-0.983, 0.0, 13.693), 'head': (-0.311, 0.0), 'right_clavicle': (2.283, 1.807),
+        'right_shoulder': (90.198, 9.569, 0.159), 'right_elbow': (34.063, 10.291),
+        'right_wrist': (-1.445, -29.642),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (4.41, -4.524, 4.456), 'spine_thoracic': (-3.775, -2.584, 4.289),
-        'neck': (0.424, -0.322, 1.282), 'right_clavicle': (2.222, 3.681),
+        'neck': (0.609, 0.0, 1.456), 'right_clavicle': (2.222, 3.681),
         'right_shoulder': (88.929, 7.712, 1.123), 'right_wrist': (-1.177, -29.009),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (3.762, -8.713, 6.815), 'spine_thoracic': (-5.525, -3.368, 6.527),
-        'neck': (1.431, -0.398, -6.99), 'head': (1.525, -0.013), 'right_clavicle': (2.194, 5.853),
+        'neck': (2.059, 0.0, -6.991), 'head': (0.883, 0.0), 'right_clavicle': (2.194, 5.853),
         'right_shoulder': (87.47, 5.962, 2.017), 'right_elbow': (35.192, 11.093),
         'right_wrist': (-0.957, -28.528),
     })
     human.KeyJoints(13.2, {
         'spine_lumbar': (5.408, -12.456, 8.828), 'spine_thoracic': (-7.537, -4.152, 8.429),
-        'neck': (1.994, -0.434, -10.792), 'head': (2.112, -0.014), 'right_clavicle': (2.51, 7.41),
+        'neck': (2.861, 0.0, -10.849), 'head': (1.226, 0.0), 'right_clavicle': (2.51, 7.41),
         'right_shoulder': (87.637, 6.373, 1.73), 'right_elbow': (34.811, 11.128),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (6.89, -13.92, 9.585), 'spine_thoracic': (-8.527, -4.496, 9.14),
-        'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.788, 7.873),
+        'neck': (0.846, 0.0, -13.26), 'head': (0.363, 0.0), 'right_clavicle': (2.788, 7.873),
         'right_shoulder': (88.41, 7.299, 1.196), 'right_elbow': (34.346, 11.015),
         'right_wrist': (-1.423, -29.914),
     })
@@ -644,607 +642,607 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.456, 0.0, -14.888), 'head': (0.195, 0.0), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.537, 7.32, 1.181), 'right_elbow': (34.178, 11.013),
         'right_wrist': (-1.418, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.09, -14.996, 9.1), 'spine_thoracic': (-10.051, -5.359, 8.809),
-        'neck': (1.502, -0.506, -15.437), 'head': (1.648, -0.015), 'right_clavicle': (5.139, 7.177),
+        'neck': (2.148, 0.0, -15.568), 'head': (0.921, 0.0), 'right_clavicle': (5.139, 7.177),
         'right_shoulder': (86.05, 8.958, 1.795), 'right_elbow': (32.61, 11.821),
         'right_wrist': (-1.276, -29.978),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.013, -19.794, 4.872), 'spine_thoracic': (-11.449, -9.911, 6.537),
-        'neck': (3.486, -0.476, -16.263), 'head': (3.643, -0.015),
-        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.994, 14.641, 8.707),
-        'right_elbow': (24.952, 19.639), 'right_wrist': (1.95, -25.526),
+        'neck': (5.006, 0.0, -16.422), 'head': (2.145, 0.0), 'right_clavicle': (17.492, 4.436),
+        'right_shoulder': (81.994, 14.641, 8.707), 'right_elbow': (24.952, 19.639),
+        'right_wrist': (1.95, -25.526),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.095, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.126, -0.476, -15.702), 'head': (3.279, -0.015),
-        'right_clavicle': (22.181, 3.735), 'right_shoulder': (81.81, 17.052, 12.683),
-        'right_elbow': (25.617, 23.582), 'right_wrist': (3.465, -22.192),
+        'neck': (4.489, 0.0, -15.855), 'head': (1.924, 0.0), 'right_clavicle': (22.181, 3.735),
+        'right_shoulder': (81.81, 17.052, 12.683), 'right_elbow': (25.617, 23.582),
+        'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(13.8, {
         'spine_lumbar': (-2.138, -19.384, 6.907), 'spine_thoracic': (-11.434, -3.627, 7.819),
-        'neck': (5.83, -0.394, -13.903), 'head': (5.973, -0.014), 'right_clavicle': (10.353, 6.811),
+        'neck': (8.346, 0.0, -14.03), 'head': (3.577, 0.0), 'right_clavicle': (10.353, 6.811),
         'right_shoulder': (80.975, 7.822, 1.397), 'right_elbow': (21.252, 12.163),
         'right_wrist': (-1.111, -29.931),
     })
     human.KeyJoints(13.9, {
         'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.314, -3.777, 8.847),
-        'neck': (3.667, -0.476, -16.615), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'neck': (5.264, 0.0, -16.773), 'head': (2.256, 0.0), 'right_clavicle': (4.162, 7.512),
         'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.529, 7.241),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (1.857, -17.664, 8.555), 'spine_thoracic': (-9.037, -6.244, 8.322),
-        'neck': (3.126, -0.491, -16.882), 'head': (3.287, -0.015), 'right_clavicle': (3.013, 7.218),
+        'neck': (4.487, 0.0, -17.039), 'head': (1.923, 0.0), 'right_clavicle': (3.013, 7.218),
         'right_shoulder': (87.44, 6.875, -4.204), 'right_elbow': (23.064, 7.107),
         'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(14.1, {
         'spine_lumbar': (2.472, -19.864, 6.254), 'spine_thoracic': (-11.04, -9.472, 7.077),
-        'neck': (4.043, -0.476, -17.214), 'head': (4.209, -0.015),
-        'right_clavicle': (11.708, 5.324), 'right_shoulder': (82.593, 11.688, 3.067),
-        'right_elbow': (23.288, 14.197), 'right_wrist': (-0.337, -28.465),
+        'neck': (5.808, 0.0, -17.387), 'head': (2.489, 0.0), 'right_clavicle': (11.708, 5.324),
+        'right_shoulder': (82.593, 11.688, 3.067), 'right_elbow': (23.288, 14.197),
+        'right_wrist': (-0.337, -28.465),
     })
     human.KeyJoints(14.2, {
         'spine_lumbar': (5.137, -19.943, 3.905), 'spine_thoracic': (-11.791, -10.0, 6.213),
-        'neck': (3.098, -0.478, -15.818), 'head': (3.252, -0.015), 'right_clavicle': (21.927, 3.74),
+        'neck': (4.45, 0.0, -15.971), 'head': (1.907, 0.0), 'right_clavicle': (21.927, 3.74),
         'right_shoulder': (81.863, 16.998, 12.463), 'right_elbow': (25.597, 23.379),
         'right_wrist': (3.379, -22.377),
     })
     human.KeyJoints(14.3, {
         'spine_lumbar': (0.058, -20.0, 4.697), 'spine_thoracic': (-11.515, -7.952, 6.598),
-        'neck': (5.081, -0.407, -13.644), 'head': (5.221, -0.014),
-        'right_clavicle': (17.524, 5.255), 'right_shoulder': (80.275, 11.902, 8.819),
-        'right_elbow': (23.532, 19.347), 'right_wrist': (2.017, -25.972),
+        'neck': (7.279, 0.0, -13.769), 'head': (3.12, 0.0), 'right_clavicle': (17.524, 5.255),
+        'right_shoulder': (80.275, 11.902, 8.819), 'right_elbow': (23.532, 19.347),
+        'right_wrist': (2.017, -25.972),
     })
     human.KeyJoints(14.4, {
         'spine_lumbar': (0.529, -17.996, 8.985), 'spine_thoracic': (-11.244, -1.911, 9.051),
-        'neck': (4.51, -0.449, -15.86), 'head': (4.666, -0.014), 'right_clavicle': (5.337, 7.671),
+        'neck': (6.471, 0.0, -16.011), 'head': (2.773, 0.0), 'right_clavicle': (5.337, 7.671),
         'right_shoulder': (84.327, 7.305, -3.631), 'right_elbow': (21.868, 7.607),
         'right_wrist': (-3.369, -29.917),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.6, {
         'spine_lumbar': (1.766, -18.843, 7.83), 'spine_thoracic': (-10.515, -7.668, 7.918),
-        'neck': (3.99, -0.48, -17.407), 'head': (4.157, -0.015), 'right_clavicle': (6.523, 6.404),
+        'neck': (5.731, 0.0, -17.579), 'head': (2.456, 0.0), 'right_clavicle': (6.523, 6.404),
         'right_shoulder': (84.491, 9.036, -1.778), 'right_elbow': (22.77, 9.484),
         'right_wrist': (-2.414, -29.974),
     })
     human.KeyJoints(14.7, {
         'spine_lumbar': (4.311, -20.0, 4.445), 'spine_thoracic': (-11.55, -10.0, 6.384),
-        'neck': (3.398, -0.476, -16.139), 'head': (3.554, -0.015),
-        'right_clavicle': (19.266, 4.171), 'right_shoulder': (81.862, 15.506, 10.1),
-        'right_elbow': (24.883, 21.052), 'right_wrist': (2.493, -24.343),
+        'neck': (4.88, 0.0, -16.298), 'head': (2.091, 0.0), 'right_clavicle': (19.266, 4.171),
+        'right_shoulder': (81.862, 15.506, 10.1), 'right_elbow': (24.883, 21.052),
+        'right_wrist': (2.493, -24.343),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (4.487, -19.882, 3.844), 'spine_thoracic': (-11.806, -10.0, 6.197),
-        'neck': (3.38, -0.466, -15.333), 'head': (3.531, -0.015), 'right_clavicle': (22.003, 3.86),
+        'neck': (4.854, 0.0, -15.48), 'head': (2.08, 0.0), 'right_clavicle': (22.003, 3.86),
         'right_shoulder': (81.54, 16.568, 12.632), 'right_elbow': (25.516, 23.45),
         'right_wrist': (3.444, -22.273),
     })
     human.KeyJoints(14.9, {
         'spine_lumbar': (-1.763, -18.946, 7.689), 'spine_thoracic': (-11.464, -2.522, 8.293),
-        'neck': (5.643, -0.405, -14.428), 'head': (5.789, -0.014), 'right_clavicle': (8.401, 7.192),
+        'neck': (8.081, 0.0, -14.561), 'head': (3.463, 0.0), 'right_clavicle': (8.401, 7.192),
         'right_shoulder': (81.784, 7.301, -0.757), 'right_elbow': (21.033, 10.17),
         'right_wrist': (-2.072, -29.994),
     })
     human.KeyJoints(15.0, {
         'spine_lumbar': (1.788, -17.77, 8.809), 'spine_thoracic': (-9.814, -4.659, 8.67),
-        'neck': (3.427, -0.483, -16.729), 'head': (3.587, -0.015), 'right_clavicle': (3.681, 7.417),
+        'neck': (4.919, 0.0, -16.886), 'head': (2.108, 0.0), 'right_clavicle': (3.681, 7.417),
         'right_shoulder': (86.745, 7.212, -4.178), 'right_elbow': (22.748, 7.16),
         'right_wrist': (-3.415, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (1.808, -17.817, 8.537), 'spine_thoracic': (-9.418, -6.344, 8.318),
-        'neck': (3.342, -0.488, -16.992), 'head': (3.504, -0.015), 'right_clavicle': (3.494, 7.133),
+        'neck': (4.798, 0.0, -17.152), 'head': (2.056, 0.0), 'right_clavicle': (3.494, 7.133),
         'right_shoulder': (86.849, 7.222, -4.001), 'right_elbow': (22.957, 7.309),
         'right_wrist': (-3.273, -30.0),
     })
     human.KeyJoints(15.2, {
         'spine_lumbar': (2.892, -19.985, 5.721), 'spine_thoracic': (-11.175, -9.807, 6.847),
-        'neck': (3.923, -0.476, -16.967), 'head': (4.087, -0.015),
-        'right_clavicle': (13.737, 4.996), 'right_shoulder': (82.221, 12.69, 4.981),
-        'right_elbow': (23.628, 16.058), 'right_wrist': (0.465, -27.531),
+        'neck': (5.635, 0.0, -17.136), 'head': (2.415, 0.0), 'right_clavicle': (13.737, 4.996),
+        'right_shoulder': (82.221, 12.69, 4.981), 'right_elbow': (23.628, 16.058),
+        'right_wrist': (0.465, -27.531),
     })
     human.KeyJoints(15.3, {
         'spine_lumbar': (5.203, -19.931, 3.867), 'spine_thoracic': (-11.815, -10.0, 6.205),
-        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.138, 3.708),
+        'neck': (4.418, 0.0, -15.946), 'head': (1.893, 0.0), 'right_clavicle': (22.138, 3.708),
         'right_shoulder': (81.865, 17.118, 12.643), 'right_elbow': (25.649, 23.557),
         'right_wrist': (3.447, -22.215),
     })
     human.KeyJoints(15.4, {
         'spine_lumbar': (-1.268, -19.968, 5.352), 'spine_thoracic': (-11.44, -6.511, 6.944),
-        'neck': (5.562, -0.394, -13.464), 'head': (5.702, -0.014), 'right_clavicle': (15.057, 5.84),
+        'neck': (7.963, 0.0, -13.586), 'head': (3.413, 0.0), 'right_clavicle': (15.057, 5.84),
         'right_shoulder': (80.23, 10.141, 6.368), 'right_elbow': (22.559, 16.917),
         'right_wrist': (1.027, -27.746),
     })
     human.KeyJoints(15.5, {
         'spine_lumbar': (1.074, -17.916, 9.05), 'spine_thoracic': (-11.016, -2.349, 9.074),
-        'neck': (4.182, -0.46, -16.191), 'head': (4.34, -0.015), 'right_clavicle': (4.869, 7.676),
+        'neck': (6.001, 0.0, -16.346), 'head': (2.572, 0.0), 'right_clavicle': (4.869, 7.676),
         'right_shoulder': (85.019, 7.386, -3.9), 'right_elbow': (22.133, 7.393),
         'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(15.7, {
         'spine_lumbar': (1.898, -19.251, 7.349), 'spine_thoracic': (-10.716, -8.343, 7.636),
-        'neck': (4.077, -0.478, -17.425), 'head': (4.244, -0.015), 'right_clavicle': (8.012, 6.049),
+        'neck': (5.855, 0.0, -17.598), 'head': (2.509, 0.0), 'right_clavicle': (8.012, 6.049),
         'right_shoulder': (83.781, 9.82, -0.408), 'right_elbow': (22.865, 10.817),
         'right_wrist': (-1.825, -29.731),
     })
     human.KeyJoints(15.8, {
         'spine_lumbar': (4.697, -20.0, 4.174), 'spine_thoracic': (-11.648, -10.0, 6.288),
-        'neck': (3.252, -0.477, -15.989), 'head': (3.407, -0.015),
-        'right_clavicle': (20.512, 3.964), 'right_shoulder': (81.856, 16.202, 11.229),
-        'right_elbow': (25.235, 22.159), 'right_wrist': (2.914, -23.44),
+        'neck': (4.671, 0.0, -16.145), 'head': (2.002, 0.0), 'right_clavicle': (20.512, 3.964),
+        'right_shoulder': (81.856, 16.202, 11.229), 'right_elbow': (25.235, 22.159),
+        'right_wrist': (2.914, -23.44),
     })
     human.KeyJoints(15.9, {
         'spine_lumbar': (3.315, -19.914, 3.928), 'spine_thoracic': (-11.735, -9.779, 6.22),
-        'neck': (3.849, -0.449, -14.774), 'head': (3.997, -0.015),
-        'right_clavicle': (21.209, 4.164), 'right_shoulder': (81.108, 15.471, 12.087),
-        'right_elbow': (25.172, 22.782), 'right_wrist': (3.25, -22.876),
+        'neck': (5.525, 0.0, -14.913), 'head': (2.368, 0.0), 'right_clavicle': (21.209, 4.164),
+        'right_shoulder': (81.108, 15.471, 12.087), 'right_elbow': (25.172, 22.782),
+        'right_wrist': (3.25, -22.876),
     })
     human.KeyJoints(16.0, {
         'spine_lumbar': (-1.073, -18.523, 8.303), 'spine_thoracic': (-11.459, -1.941, 8.674),
-        'neck': (5.319, -0.42, -14.961), 'head': (5.469, -0.014), 'right_clavicle': (7.0, 7.462),
+        'neck': (7.623, 0.0, -15.101), 'head': (3.267, 0.0), 'right_clavicle': (7.0, 7.462),
         'right_shoulder': (82.652, 7.192, -2.177), 'right_elbow': (21.11, 8.878),
         'right_wrist': (-2.718, -29.998),
     })
     human.KeyJoints(16.1, {
         'spine_lumbar': (1.856, -17.681, 8.674), 'spine_thoracic': (-9.309, -5.505, 8.483),
-        'neck': (3.208, -0.488, -16.792), 'head': (3.369, -0.015), 'right_clavicle': (3.214, 7.326),
+        'neck': (4.604, 0.0, -16.948), 'head': (1.973, 0.0), 'right_clavicle': (3.214, 7.326),
         'right_shoulder': (87.263, 6.958, -4.235), 'right_elbow': (22.946, 7.09),
         'right_wrist': (-3.371, -29.97),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (1.744, -18.083, 8.467), 'spine_thoracic': (-9.96, -6.566, 8.301),
-        'neck': (3.651, -0.484, -17.178), 'head': (3.815, -0.015), 'right_clavicle': (4.306, 6.974),
+        'neck': (5.242, 0.0, -17.344), 'head': (2.247, 0.0), 'right_clavicle': (4.306, 6.974),
         'right_shoulder': (85.957, 7.778, -3.588), 'right_elbow': (22.815, 7.717),
         'right_wrist': (-3.154, -30.0),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (3.362, -20.0, 5.237), 'spine_thoracic': (-11.307, -9.976, 6.666),
-        'neck': (3.759, -0.475, -16.66), 'head': (3.92, -0.015), 'right_clavicle': (15.764, 4.701),
+        'neck': (5.398, 0.0, -16.826), 'head': (2.314, 0.0), 'right_clavicle': (15.764, 4.701),
         'right_shoulder': (82.002, 13.686, 6.873), 'right_elbow': (24.026, 17.9),
         'right_wrist': (1.237, -26.493),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (5.212, -19.927, 3.863), 'spine_thoracic': (-11.819, -10.0, 6.205),
-        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015),
-        'right_clavicle': (22.171, 3.703), 'right_shoulder': (81.865, 17.135, 12.671),
-        'right_elbow': (25.656, 23.583), 'right_wrist': (3.458, -22.191),
+        'neck': (4.414, 0.0, -15.941), 'head': (1.892, 0.0), 'right_clavicle': (22.171, 3.703),
+        'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
+        'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (-1.963, -19.788, 6.117), 'spine_thoracic': (-11.415, -4.978, 7.36),
-        'neck': (5.794, -0.391, -13.613), 'head': (5.935, -0.014),
-        'right_clavicle': (12.558, 6.365), 'right_shoulder': (80.412, 8.752, 3.766),
-        'right_elbow': (21.765, 14.404), 'right_wrist': (-0.074, -29.117),
+        'neck': (8.294, 0.0, -13.736), 'head': (3.555, 0.0), 'right_clavicle': (12.558, 6.365),
+        'right_shoulder': (80.412, 8.752, 3.766), 'right_elbow': (21.765, 14.404),
+        'right_wrist': (-0.074, -29.117),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (1.449, -17.887, 9.002), 'spine_thoracic': (-10.704, -3.002, 8.98),
-        'neck': (3.901, -0.469, -16.423), 'head': (4.06, -0.015), 'right_clavicle': (4.535, 7.604),
+        'neck': (5.6, 0.0, -16.579), 'head': (2.4, 0.0), 'right_clavicle': (4.535, 7.604),
         'right_shoulder': (85.587, 7.389, -4.014), 'right_elbow': (22.329, 7.313),
         'right_wrist': (-3.445, -29.891),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.893, -6.213, 8.323),
-        'neck': (3.046, -0.492, -16.839), 'head': (3.206, -0.015), 'right_clavicle': (2.837, 7.247),
+        'neck': (4.37, 0.0, -16.994), 'head': (1.873, 0.0), 'right_clavicle': (2.837, 7.247),
         'right_shoulder': (87.662, 6.746, -4.271), 'right_elbow': (23.104, 7.04),
         'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(16.8, {
         'spine_lumbar': (2.13, -19.609, 6.815), 'spine_thoracic': (-10.889, -8.967, 7.349),
-        'neck': (4.098, -0.477, -17.369), 'head': (4.265, -0.015), 'right_clavicle': (9.749, 5.683),
+        'neck': (5.886, 0.0, -17.543), 'head': (2.523, 0.0), 'right_clavicle': (9.749, 5.683),
         'right_shoulder': (83.13, 10.708, 1.217), 'right_elbow': (23.028, 12.397),
         'right_wrist': (-1.126, -29.225),
     })
     human.KeyJoints(16.9, {
         'spine_lumbar': (4.972, -19.972, 4.001), 'spine_thoracic': (-11.733, -10.0, 6.238),
-        'neck': (3.155, -0.478, -15.884), 'head': (3.309, -0.015),
-        'right_clavicle': (21.399, 3.823), 'right_shoulder': (81.859, 16.7, 12.007),
-        'right_elbow': (25.465, 22.928), 'right_wrist': (3.207, -22.779),
+        'neck': (4.531, 0.0, -16.038), 'head': (1.942, 0.0), 'right_clavicle': (21.399, 3.823),
+        'right_shoulder': (81.859, 16.7, 12.007), 'right_elbow': (25.465, 22.928),
+        'right_wrist': (3.207, -22.779),
     })
     human.KeyJoints(17.0, {
         'spine_lumbar': (1.73, -19.989, 4.202), 'spine_thoracic': (-11.627, -9.099, 6.345),
-        'neck': (4.46, -0.428, -14.158), 'head': (4.604, -0.014), 'right_clavicle': (19.686, 4.653),
+        'neck': (6.396, 0.0, -14.29), 'head': (2.741, 0.0), 'right_clavicle': (19.686, 4.653),
         'right_shoulder': (80.631, 13.823, 10.822), 'right_elbow': (24.489, 21.405),
         'right_wrist': (2.786, -24.172),
     })
     human.KeyJoints(17.1, {
         'spine_lumbar': (-0.219, -18.163, 8.751), 'spine_thoracic': (-11.395, -1.68, 8.945),
-        'neck': (4.902, -0.435, -15.421), 'head': (5.055, -0.014), 'right_clavicle': (5.985, 7.634),
+        'neck': (7.03, 0.0, -15.567), 'head': (3.013, 0.0), 'right_clavicle': (5.985, 7.634),
         'right_shoulder': (83.526, 7.179, -3.092), 'right_elbow': (21.544, 8.061),
         'right_wrist': (-3.133, -29.985),
     })
     human.KeyJoints(17.2, {
         'spine_lumbar': (1.877, -17.613, 8.571), 'spine_thoracic': (-8.935, -6.123, 8.343),
-        'neck': (3.059, -0.492, -16.83), 'head': (3.22, -0.015), 'right_clavicle': (2.871, 7.259),
+        'neck': (4.39, 0.0, -16.986), 'head': (1.882, 0.0), 'right_clavicle': (2.871, 7.259),
         'right_shoulder': (87.628, 6.763, -4.272), 'right_elbow': (23.087, 7.041),
         'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (1.738, -18.435, 8.259), 'spine_thoracic': (-10.29, -7.004, 8.194),
-        'neck': (3.848, -0.482, -17.386), 'head': (4.014, -0.015), 'right_clavicle': (5.311, 6.729),
+        'neck': (5.526, 0.0, -17.557), 'head': (2.368, 0.0), 'right_clavicle': (5.311, 6.729),
         'right_shoulder': (85.185, 8.38, -2.871), 'right_elbow': (22.768, 8.42),
         'right_wrist': (-2.889, -30.0),
     })
     human.KeyJoints(17.4, {
         'spine_lumbar': (3.845, -20.0, 4.81), 'spine_thoracic': (-11.435, -10.0, 6.516),
-        'neck': (3.576, -0.475, -16.37), 'head': (3.735, -0.015), 'right_clavicle': (17.646, 4.427),
+        'neck': (5.136, 0.0, -16.532), 'head': (2.201, 0.0), 'right_clavicle': (17.646, 4.427),
         'right_shoulder': (81.896, 14.639, 8.611), 'right_elbow': (24.455, 19.596),
         'right_wrist': (1.925, -25.409),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
-        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
-        'right_elbow': (25.614, 23.582), 'right_wrist': (3.465, -22.192),
+        'neck': (4.497, 0.0, -15.846), 'head': (1.927, 0.0), 'right_clavicle': (22.181, 3.738),
+        'right_shoulder': (81.804, 17.042, 12.683), 'right_elbow': (25.614, 23.582),
+        'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(17.6, {
         'spine_lumbar': (-2.139, -19.371, 6.931), 'spine_thoracic': (-11.435, -3.59, 7.834),
-        'neck': (5.829, -0.394, -13.915), 'head': (5.972, -0.014),
-        'right_clavicle': (10.289, 6.823), 'right_shoulder': (80.995, 7.802, 1.327),
-        'right_elbow': (21.243, 12.098), 'right_wrist': (-1.142, -29.938),
+        'neck': (8.345, 0.0, -14.042), 'head': (3.576, 0.0), 'right_clavicle': (10.289, 6.823),
+        'right_shoulder': (80.995, 7.802, 1.327), 'right_elbow': (21.243, 12.098),
+        'right_wrist': (-1.142, -29.938),
     })
     human.KeyJoints(17.7, {
         'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.315, -3.776, 8.847),
-        'neck': (3.667, -0.476, -16.614), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'neck': (5.264, 0.0, -16.772), 'head': (2.256, 0.0), 'right_clavicle': (4.162, 7.512),
         'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.528, 7.241),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (1.858, -17.662, 8.555), 'spine_thoracic': (-9.032, -6.243, 8.322),
-        'neck': (3.124, -0.491, -16.881), 'head': (3.285, -0.015), 'right_clavicle': (3.007, 7.218),
+        'neck': (4.483, 0.0, -17.037), 'head': (1.921, 0.0), 'right_clavicle': (3.007, 7.218),
         'right_shoulder': (87.447, 6.871, -4.206), 'right_elbow': (23.065, 7.105),
         'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(17.9, {
         'spine_lumbar': (2.465, -19.861, 6.263), 'spine_thoracic': (-11.038, -9.465, 7.081),
-        'neck': (4.045, -0.476, -17.217), 'head': (4.21, -0.015), 'right_clavicle': (11.674, 5.33),
+        'neck': (5.81, 0.0, -17.39), 'head': (2.49, 0.0), 'right_clavicle': (11.674, 5.33),
         'right_shoulder': (82.6, 11.671, 3.035), 'right_elbow': (23.283, 14.166),
         'right_wrist': (-0.35, -28.479),
     })
     human.KeyJoints(18.0, {
         'spine_lumbar': (5.135, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.213),
-        'neck': (3.099, -0.478, -15.818), 'head': (3.253, -0.015),
-        'right_clavicle': (21.921, 3.741), 'right_shoulder': (81.863, 16.995, 12.458),
-        'right_elbow': (25.596, 23.374), 'right_wrist': (3.377, -22.382),
+        'neck': (4.451, 0.0, -15.972), 'head': (1.907, 0.0), 'right_clavicle': (21.921, 3.741),
+        'right_shoulder': (81.863, 16.995, 12.458), 'right_elbow': (25.596, 23.374),
+        'right_wrist': (3.377, -22.382),
     })
     human.KeyJoints(18.1, {
         'spine_lumbar': (0.085, -20.0, 4.686), 'spine_thoracic': (-11.517, -7.974, 6.593),
-        'neck': (5.071, -0.407, -13.65), 'head': (5.212, -0.014), 'right_clavicle': (17.565, 5.245),
+        'neck': (7.265, 0.0, -13.775), 'head': (3.114, 0.0), 'right_clavicle': (17.565, 5.245),
         'right_shoulder': (80.28, 11.935, 8.858), 'right_elbow': (23.55, 19.386),
         'right_wrist': (2.033, -25.94),
     })
     human.KeyJoints(18.2, {
         'spine_lumbar': (0.517, -17.998, 8.982), 'spine_thoracic': (-11.248, -1.905, 9.049),
-        'neck': (4.517, -0.449, -15.852), 'head': (4.673, -0.014), 'right_clavicle': (5.345, 7.671),
+        'neck': (6.48, 0.0, -16.003), 'head': (2.777, 0.0), 'right_clavicle': (5.345, 7.671),
         'right_shoulder': (84.314, 7.302, -3.624), 'right_elbow': (21.863, 7.613),
         'right_wrist': (-3.366, -29.918),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(18.4, {
         'spine_lumbar': (1.765, -18.836, 7.838), 'spine_thoracic': (-10.511, -7.657, 7.922),
-        'neck': (3.988, -0.48, -17.406), 'head': (4.155, -0.015), 'right_clavicle': (6.5, 6.409),
+        'neck': (5.728, 0.0, -17.578), 'head': (2.455, 0.0), 'right_clavicle': (6.5, 6.409),
         'right_shoulder': (84.503, 9.024, -1.799), 'right_elbow': (22.769, 9.464),
         'right_wrist': (-2.423, -29.977),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (4.303, -20.0, 4.451), 'spine_thoracic': (-11.549, -10.0, 6.386),
-        'neck': (3.401, -0.476, -16.143), 'head': (3.557, -0.015),
-        'right_clavicle': (19.242, 4.175), 'right_shoulder': (81.862, 15.493, 10.078),
-        'right_elbow': (24.876, 21.03), 'right_wrist': (2.484, -24.36),
+        'neck': (4.884, 0.0, -16.301), 'head': (2.093, 0.0), 'right_clavicle': (19.242, 4.175),
+        'right_shoulder': (81.862, 15.493, 10.078), 'right_elbow': (24.876, 21.03),
+        'right_wrist': (2.484, -24.36),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (4.5, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
-        'neck': (3.374, -0.466, -15.34), 'head': (3.525, -0.015), 'right_clavicle': (22.008, 3.857),
+        'neck': (4.846, 0.0, -15.488), 'head': (2.077, 0.0), 'right_clavicle': (22.008, 3.857),
         'right_shoulder': (81.546, 16.579, 12.634), 'right_elbow': (25.518, 23.454),
         'right_wrist': (3.445, -22.271),
     })
     human.KeyJoints(18.7, {
         'spine_lumbar': (-1.774, -18.953, 7.677), 'spine_thoracic': (-11.463, -2.536, 8.286),
-        'neck': (5.647, -0.405, -14.419), 'head': (5.794, -0.014), 'right_clavicle': (8.429, 7.186),
+        'neck': (8.088, 0.0, -14.552), 'head': (3.466, 0.0), 'right_clavicle': (8.429, 7.186),
         'right_shoulder': (81.769, 7.306, -0.727), 'right_elbow': (21.035, 10.198),
         'right_wrist': (-2.059, -29.994),
     })
     human.KeyJoints(18.8, {
         'spine_lumbar': (1.786, -17.772, 8.812), 'spine_thoracic': (-9.822, -4.644, 8.673),
-        'neck': (3.431, -0.483, -16.727), 'head': (3.591, -0.015), 'right_clavicle': (3.689, 7.419),
+        'neck': (4.925, 0.0, -16.885), 'head': (2.111, 0.0), 'right_clavicle': (3.689, 7.419),
         'right_shoulder': (86.735, 7.216, -4.177), 'right_elbow': (22.745, 7.161),
         'right_wrist': (-3.416, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (1.809, -17.814, 8.537), 'spine_thoracic': (-9.41, -6.342, 8.318),
-        'neck': (3.338, -0.488, -16.989), 'head': (3.5, -0.015), 'right_clavicle': (3.483, 7.135),
+        'neck': (4.791, 0.0, -17.149), 'head': (2.053, 0.0), 'right_clavicle': (3.483, 7.135),
         'right_shoulder': (86.862, 7.214, -4.005), 'right_elbow': (22.96, 7.304),
         'right_wrist': (-3.274, -30.0),
     })
     human.KeyJoints(19.0, {
         'spine_lumbar': (2.884, -19.985, 5.73), 'spine_thoracic': (-11.173, -9.802, 6.851),
-        'neck': (3.926, -0.476, -16.972), 'head': (4.089, -0.015),
-        'right_clavicle': (13.702, 5.002), 'right_shoulder': (82.226, 12.673, 4.948),
-        'right_elbow': (23.622, 16.026), 'right_wrist': (0.451, -27.548),
+        'neck': (5.638, 0.0, -17.142), 'head': (2.416, 0.0), 'right_clavicle': (13.702, 5.002),
+        'right_shoulder': (82.226, 12.673, 4.948), 'right_elbow': (23.622, 16.026),
+        'right_wrist': (0.451, -27.548),
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (5.202, -19.931, 3.868), 'spine_thoracic': (-11.814, -10.0, 6.205),
-        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.137, 3.708),
+        'neck': (4.418, 0.0, -15.946), 'head': (1.893, 0.0), 'right_clavicle': (22.137, 3.708),
         'right_shoulder': (81.865, 17.117, 12.642), 'right_elbow': (25.649, 23.556),
         'right_wrist': (3.447, -22.216),
     })
     human.KeyJoints(19.2, {
         'spine_lumbar': (-1.248, -19.97, 5.34), 'spine_thoracic': (-11.441, -6.538, 6.937),
-        'neck': (5.555, -0.394, -13.466), 'head': (5.695, -0.014), 'right_clavicle': (15.101, 5.83),
+        'neck': (7.953, 0.0, -13.588), 'head': (3.409, 0.0), 'right_clavicle': (15.101, 5.83),
         'right_shoulder': (80.228, 10.169, 6.413), 'right_elbow': (22.575, 16.961),
         'right_wrist': (1.046, -27.717),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (1.066, -17.917, 9.05), 'spine_thoracic': (-11.02, -2.34, 9.074),
-        'neck': (4.187, -0.46, -16.187), 'head': (4.344, -0.015), 'right_clavicle': (4.875, 7.677),
+        'neck': (6.008, 0.0, -16.342), 'head': (2.575, 0.0), 'right_clavicle': (4.875, 7.677),
         'right_shoulder': (85.009, 7.385, -3.897), 'right_elbow': (22.129, 7.395),
         'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(19.5, {
         'spine_lumbar': (1.895, -19.244, 7.358), 'spine_thoracic': (-10.713, -8.332, 7.641),
-        'neck': (4.076, -0.478, -17.425), 'head': (4.243, -0.015), 'right_clavicle': (7.985, 6.055),
+        'neck': (5.854, 0.0, -17.599), 'head': (2.509, 0.0), 'right_clavicle': (7.985, 6.055),
         'right_shoulder': (83.792, 9.806, -0.434), 'right_elbow': (22.863, 10.792),
         'right_wrist': (-1.836, -29.738),
     })
     human.KeyJoints(19.6, {
         'spine_lumbar': (4.692, -20.0, 4.178), 'spine_thoracic': (-11.646, -10.0, 6.289),
-        'neck': (3.254, -0.477, -15.99), 'head': (3.409, -0.015), 'right_clavicle': (20.494, 3.967),
+        'neck': (4.674, 0.0, -16.147), 'head': (2.003, 0.0), 'right_clavicle': (20.494, 3.967),
         'right_shoulder': (81.856, 16.192, 11.213), 'right_elbow': (25.23, 22.143),
         'right_wrist': (2.908, -23.453),
     })
     human.KeyJoints(19.7, {
         'spine_lumbar': (3.339, -19.913, 3.926), 'spine_thoracic': (-11.736, -9.785, 6.219),
-        'neck': (3.84, -0.449, -14.784), 'head': (3.988, -0.015), 'right_clavicle': (21.228, 4.157),
+        'neck': (5.512, 0.0, -14.924), 'head': (2.362, 0.0), 'right_clavicle': (21.228, 4.157),
         'right_shoulder': (81.115, 15.494, 12.102), 'right_elbow': (25.18, 22.798),
         'right_wrist': (3.255, -22.861),
     })
     human.KeyJoints(19.8, {
         'spine_lumbar': (-1.087, -18.53, 8.294), 'spine_thoracic': (-11.459, -1.948, 8.668),
-        'neck': (5.326, -0.419, -14.953), 'head': (5.476, -0.014), 'right_clavicle': (7.02, 7.458),
+        'neck': (7.632, 0.0, -15.092), 'head': (3.271, 0.0), 'right_clavicle': (7.02, 7.458),
         'right_shoulder': (82.637, 7.192, -2.158), 'right_elbow': (21.104, 8.896),
         'right_wrist': (-2.709, -29.998),
     })
     human.KeyJoints(19.9, {
         'spine_lumbar': (1.855, -17.682, 8.676), 'spine_thoracic': (-9.317, -5.492, 8.486),
-        'neck': (3.211, -0.488, -16.791), 'head': (3.372, -0.015), 'right_clavicle': (3.221, 7.327),
+        'neck': (4.609, 0.0, -16.947), 'head': (1.975, 0.0), 'right_clavicle': (3.221, 7.327),
         'right_shoulder': (87.255, 6.963, -4.235), 'right_elbow': (22.943, 7.091),
         'right_wrist': (-3.372, -29.969),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (1.745, -18.077, 8.469), 'spine_thoracic': (-9.952, -6.561, 8.302),
-        'neck': (3.646, -0.484, -17.174), 'head': (3.81, -0.015), 'right_clavicle': (4.29, 6.977),
+        'neck': (5.235, 0.0, -17.34), 'head': (2.244, 0.0), 'right_clavicle': (4.29, 6.977),
         'right_shoulder': (85.972, 7.768, -3.597), 'right_elbow': (22.817, 7.708),
         'right_wrist': (-3.157, -30.0),
     })
     human.KeyJoints(20.1, {
         'spine_lumbar': (3.353, -20.0, 5.245), 'spine_thoracic': (-11.305, -9.974, 6.669),
-        'neck': (3.762, -0.475, -16.666), 'head': (3.923, -0.015),
-        'right_clavicle': (15.731, 4.706), 'right_shoulder': (82.004, 13.67, 6.842),
-        'right_elbow': (24.019, 17.869), 'right_wrist': (1.225, -26.511),
+        'neck': (5.403, 0.0, -16.831), 'head': (2.315, 0.0), 'right_clavicle': (15.731, 4.706),
+        'right_shoulder': (82.004, 13.67, 6.842), 'right_elbow': (24.019, 17.869),
+        'right_wrist': (1.225, -26.511),
     })
     human.KeyJoints(20.2, {
         'spine_lumbar': (5.212, -19.928, 3.862), 'spine_thoracic': (-11.819, -10.0, 6.204),
-        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015), 'right_clavicle': (22.17, 3.703),
+        'neck': (4.414, 0.0, -15.942), 'head': (1.892, 0.0), 'right_clavicle': (22.17, 3.703),
         'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
         'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(20.3, {
         'spine_lumbar': (-1.958, -19.793, 6.103), 'spine_thoracic': (-11.415, -5.003, 7.352),
-        'neck': (5.793, -0.39, -13.608), 'head': (5.934, -0.014), 'right_clavicle': (12.599, 6.356),
+        'neck': (8.292, 0.0, -13.731), 'head': (3.554, 0.0), 'right_clavicle': (12.599, 6.356),
         'right_shoulder': (80.406, 8.772, 3.809), 'right_elbow': (21.777, 14.446),
         'right_wrist': (-0.055, -29.098),
     })
     human.KeyJoints(20.4, {
         'spine_lumbar': (1.444, -17.888, 9.004), 'spine_thoracic': (-10.71, -2.99, 8.982),
-        'neck': (3.905, -0.469, -16.419), 'head': (4.065, -0.015), 'right_clavicle': (4.54, 7.605),
+        'neck': (5.606, 0.0, -16.576), 'head': (2.403, 0.0), 'right_clavicle': (4.54, 7.605),
         'right_shoulder': (85.578, 7.389, -4.012), 'right_elbow': (22.326, 7.314),
         'right_wrist': (-3.445, -29.89),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.892, -6.213, 8.323),
-        'neck': (3.045, -0.492, -16.839), 'head': (3.205, -0.015), 'right_clavicle': (2.836, 7.247),
+        'neck': (4.37, 0.0, -16.994), 'head': (1.873, 0.0), 'right_clavicle': (2.836, 7.247),
         'right_shoulder': (87.663, 6.745, -4.272), 'right_elbow': (23.104, 7.039),
         'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(20.6, {
         'spine_lumbar': (2.125, -19.603, 6.824), 'spine_thoracic': (-10.886, -8.958, 7.354),
-        'neck': (4.098, -0.477, -17.37), 'head': (4.265, -0.015), 'right_clavicle': (9.718, 5.689),
+        'neck': (5.887, 0.0, -17.544), 'head': (2.523, 0.0), 'right_clavicle': (9.718, 5.689),
         'right_shoulder': (83.14, 10.693, 1.187), 'right_elbow': (23.025, 12.369),
         'right_wrist': (-1.138, -29.235),
     })
     human.KeyJoints(20.7, {
         'spine_lumbar': (4.968, -19.973, 4.003), 'spine_thoracic': (-11.732, -10.0, 6.238),
-        'neck': (3.156, -0.478, -15.885), 'head': (3.311, -0.015),
-        'right_clavicle': (21.387, 3.825), 'right_shoulder': (81.859, 16.693, 11.997),
-        'right_elbow': (25.462, 22.917), 'right_wrist': (3.203, -22.788),
+        'neck': (4.533, 0.0, -16.04), 'head': (1.943, 0.0), 'right_clavicle': (21.387, 3.825),
+        'right_shoulder': (81.859, 16.693, 11.997), 'right_elbow': (25.462, 22.917),
+        'right_wrist': (3.203, -22.788),
     })
     human.KeyJoints(20.8, {
         'spine_lumbar': (1.759, -19.988, 4.195), 'spine_thoracic': (-11.629, -9.116, 6.341),
-        'neck': (4.449, -0.428, -14.167), 'head': (4.593, -0.014),
-        'right_clavicle': (19.718, 4.644), 'right_shoulder': (80.639, 13.855, 10.85),
-        'right_elbow': (24.503, 21.434), 'right_wrist': (2.796, -24.144),
+        'neck': (6.38, 0.0, -14.299), 'head': (2.734, 0.0), 'right_clavicle': (19.718, 4.644),
+        'right_shoulder': (80.639, 13.855, 10.85), 'right_elbow': (24.503, 21.434),
+        'right_wrist': (2.796, -24.144),
     })
     human.KeyJoints(20.9, {
         'spine_lumbar': (-0.232, -18.167, 8.746), 'spine_thoracic': (-11.396, -1.681, 8.942),
-        'neck': (4.909, -0.435, -15.415), 'head': (5.062, -0.014), 'right_clavicle': (5.999, 7.633),
+        'neck': (7.039, 0.0, -15.56), 'head': (3.017, 0.0), 'right_clavicle': (5.999, 7.633),
         'right_shoulder': (83.513, 7.179, -3.081), 'right_elbow': (21.538, 8.07),
         'right_wrist': (-3.128, -29.985),
     })
     human.KeyJoints(21.0, {
         'spine_lumbar': (1.877, -17.614, 8.572), 'spine_thoracic': (-8.939, -6.116, 8.344),
-        'neck': (3.061, -0.492, -16.83), 'head': (3.221, -0.015), 'right_clavicle': (2.875, 7.26),
+        'neck': (4.393, 0.0, -16.985), 'head': (1.883, 0.0), 'right_clavicle': (2.875, 7.26),
         'right_shoulder': (87.624, 6.765, -4.271), 'right_elbow': (23.085, 7.042),
         'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (1.738, -18.428, 8.265), 'spine_thoracic': (-10.286, -6.994, 8.198),
-        'neck': (3.846, -0.482, -17.385), 'head': (4.012, -0.015), 'right_clavicle': (5.293, 6.734),
+        'neck': (5.522, 0.0, -17.556), 'head': (2.367, 0.0), 'right_clavicle': (5.293, 6.734),
         'right_shoulder': (85.196, 8.37, -2.886), 'right_elbow': (22.768, 8.405),
         'right_wrist': (-2.896, -30.0),
     })
     human.KeyJoints(21.2, {
         'spine_lumbar': (3.837, -20.0, 4.816), 'spine_thoracic': (-11.433, -10.0, 6.519),
-        'neck': (3.579, -0.475, -16.375), 'head': (3.738, -0.015),
-        'right_clavicle': (17.616, 4.432), 'right_shoulder': (81.897, 14.624, 8.584),
-        'right_elbow': (24.448, 19.57), 'right_wrist': (1.914, -25.427),
+        'neck': (5.141, 0.0, -16.536), 'head': (2.203, 0.0), 'right_clavicle': (17.616, 4.432),
+        'right_shoulder': (81.897, 14.624, 8.584), 'right_elbow': (24.448, 19.57),
+        'right_wrist': (1.914, -25.427),
     })
     human.KeyJoints(21.3, {
         'spine_lumbar': (5.086, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.13, -0.476, -15.697), 'head': (3.283, -0.015), 'right_clavicle': (22.181, 3.737),
+        'neck': (4.495, 0.0, -15.849), 'head': (1.926, 0.0), 'right_clavicle': (22.181, 3.737),
         'right_shoulder': (81.806, 17.045, 12.683), 'right_elbow': (25.615, 23.582),
         'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(21.4, {
         'spine_lumbar': (-2.139, -19.378, 6.918), 'spine_thoracic': (-11.435, -3.61, 7.826),
-        'neck': (5.83, -0.394, -13.909), 'head': (5.972, -0.014), 'right_clavicle': (10.324, 6.817),
+        'neck': (8.345, 0.0, -14.035), 'head': (3.577, 0.0), 'right_clavicle': (10.324, 6.817),
         'right_shoulder': (80.984, 7.813, 1.365), 'right_elbow': (21.248, 12.133),
         'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(21.5, {
         'spine_lumbar': (1.66, -17.85, 8.931), 'spine_thoracic': (-10.322, -3.762, 8.85),
-        'neck': (3.671, -0.476, -16.612), 'head': (3.831, -0.015), 'right_clavicle': (4.17, 7.514),
+        'neck': (5.27, 0.0, -16.77), 'head': (2.258, 0.0), 'right_clavicle': (4.17, 7.514),
         'right_shoulder': (86.144, 7.386, -4.099), 'right_elbow': (22.525, 7.242),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (1.859, -17.66, 8.555), 'spine_thoracic': (-9.028, -6.242, 8.322),
-        'neck': (3.122, -0.491, -16.879), 'head': (3.282, -0.015), 'right_clavicle': (3.002, 7.219),
+        'neck': (4.48, 0.0, -17.036), 'head': (1.92, 0.0), 'right_clavicle': (3.002, 7.219),
         'right_shoulder': (87.453, 6.867, -4.208), 'right_elbow': (23.066, 7.103),
         'right_wrist': (-3.32, -30.0),
     })
     human.KeyJoints(21.7, {
         'spine_lumbar': (2.459, -19.858, 6.273), 'spine_thoracic': (-11.035, -9.458, 7.085),
-        'neck': (4.046, -0.476, -17.221), 'head': (4.212, -0.015),
-        'right_clavicle': (11.641, 5.336), 'right_shoulder': (82.608, 11.655, 3.004),
-        'right_elbow': (23.278, 14.135), 'right_wrist': (-0.363, -28.493),
+        'neck': (5.812, 0.0, -17.393), 'head': (2.491, 0.0), 'right_clavicle': (11.641, 5.336),
+        'right_shoulder': (82.608, 11.655, 3.004), 'right_elbow': (23.278, 14.135),
+        'right_wrist': (-0.363, -28.493),
     })
     human.KeyJoints(21.8, {
         'spine_lumbar': (5.133, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (3.1, -0.478, -15.819), 'head': (3.253, -0.015), 'right_clavicle': (21.915, 3.742),
+        'neck': (4.452, 0.0, -15.973), 'head': (1.908, 0.0), 'right_clavicle': (21.915, 3.742),
         'right_shoulder': (81.863, 16.992, 12.453), 'right_elbow': (25.594, 23.368),
         'right_wrist': (3.375, -22.387),
     })
     human.KeyJoints(21.9, {
         'spine_lumbar': (0.112, -20.0, 4.676), 'spine_thoracic': (-11.519, -7.997, 6.588),
-        'neck': (5.061, -0.408, -13.656), 'head': (5.202, -0.014),
-        'right_clavicle': (17.605, 5.234), 'right_shoulder': (80.284, 11.967, 8.897),
-        'right_elbow': (23.567, 19.425), 'right_wrist': (2.048, -25.907),
+        'neck': (7.251, 0.0, -13.781), 'head': (3.108, 0.0), 'right_clavicle': (17.605, 5.234),
+        'right_shoulder': (80.284, 11.967, 8.897), 'right_elbow': (23.567, 19.425),
+        'right_wrist': (2.048, -25.907),
     })
     human.KeyJoints(22.0, {
         'spine_lumbar': (0.506, -18.001, 8.979), 'spine_thoracic': (-11.251, -1.898, 9.048),
-        'neck': (4.523, -0.449, -15.845), 'head': (4.679, -0.014), 'right_clavicle': (5.354, 7.671),
+        'neck': (6.489, 0.0, -15.996), 'head': (2.781, 0.0), 'right_clavicle': (5.354, 7.671),
         'right_shoulder': (84.302, 7.299, -3.617), 'right_elbow': (21.858, 7.619),
         'right_wrist': (-3.363, -29.92),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
+        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (1.764, -18.829, 7.845), 'spine_thoracic': (-10.507, -7.646, 7.927),
-        'neck': (3.986, -0.48, -17.405), 'head': (4.153, -0.015), 'right_clavicle': (6.478, 6.415),
+        'neck': (5.725, 0.0, -17.578), 'head': (2.454, 0.0), 'right_clavicle': (6.478, 6.415),
         'right_shoulder': (84.515, 9.012, -1.819), 'right_elbow': (22.768, 9.444),
         'right_wrist': (-2.432, -29.979),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (4.296, -20.0, 4.456), 'spine_thoracic': (-11.547, -10.0, 6.389),
-        'neck': (3.403, -0.476, -16.146), 'head': (3.56, -0.015), 'right_clavicle': (19.218, 4.18),
+        'neck': (4.888, 0.0, -16.304), 'head': (2.095, 0.0), 'right_clavicle': (19.218, 4.18),
         'right_shoulder': (81.862, 15.48, 10.056), 'right_elbow': (24.869, 21.009),
         'right_wrist': (2.476, -24.377),
     })
     human.KeyJoints(22.4, {
         'spine_lumbar': (4.513, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
-        'neck': (3.369, -0.466, -15.348), 'head': (3.52, -0.015), 'right_clavicle': (22.013, 3.855),
+        'neck': (4.838, 0.0, -15.495), 'head': (2.073, 0.0), 'right_clavicle': (22.013, 3.855),
         'right_shoulder': (81.551, 16.59, 12.635), 'right_elbow': (25.521, 23.457),
         'right_wrist': (3.446, -22.268),
     })
     human.KeyJoints(22.5, {
         'spine_lumbar': (-1.785, -18.96, 7.665), 'spine_thoracic': (-11.463, -2.551, 8.279),
-        'neck': (5.652, -0.405, -14.409), 'head': (5.799, -0.014), 'right_clavicle': (8.457, 7.181),
+        'neck': (8.095, 0.0, -14.542), 'head': (3.469, 0.0), 'right_clavicle': (8.457, 7.181),
         'right_shoulder': (81.755, 7.312, -0.696), 'right_elbow': (21.037, 10.226),
         'right_wrist': (-2.045, -29.993),
     })
     human.KeyJoints(22.6, {
         'spine_lumbar': (1.785, -17.773, 8.814), 'spine_thoracic': (-9.831, -4.629, 8.677),
-        'neck': (3.435, -0.483, -16.726), 'head': (3.595, -0.015), 'right_clavicle': (3.698, 7.42),
+        'neck': (4.93, 0.0, -16.884), 'head': (2.113, 0.0), 'right_clavicle': (3.698, 7.42),
         'right_shoulder': (86.726, 7.22, -4.175), 'right_elbow': (22.741, 7.162),
         'right_wrist': (-3.417, -29.934),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (1.812, -17.804, 8.539), 'spine_thoracic': (-9.386, -6.334, 8.319),
-        'neck': (3.324, -0.488, -16.982), 'head': (3.486, -0.015), 'right_clavicle': (3.452, 7.14),
+        'neck': (4.771, 0.0, -17.142), 'head': (2.045, 0.0), 'right_clavicle': (3.452, 7.14),
         'right_shoulder': (86.9, 7.191, -4.019), 'right_elbow': (22.966, 7.29),
         'right_wrist': (-3.278, -30.0),
     })
     human.KeyJoints(22.8, {
         'spine_lumbar': (2.846, -19.982, 5.774), 'spine_thoracic': (-11.161, -9.78, 6.868),
-        'neck': (3.938, -0.476, -16.998), 'head': (4.102, -0.015),
-        'right_clavicle': (13.528, 5.028), 'right_shoulder': (82.251, 12.587, 4.785),
-        'right_elbow': (23.59, 15.867), 'right_wrist': (0.384, -27.632),
+        'neck': (5.656, 0.0, -17.168), 'head': (2.424, 0.0), 'right_clavicle': (13.528, 5.028),
+        'right_shoulder': (82.251, 12.587, 4.785), 'right_elbow': (23.59, 15.867),
+        'right_wrist': (0.384, -27.632),
     })
     human.KeyJoints(22.9, {
         'spine_lumbar': (5.198, -19.932, 3.87), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (3.078, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.123, 3.71),
+        'neck': (4.42, 0.0, -15.948), 'head': (1.894, 0.0), 'right_clavicle': (22.123, 3.71),
         'right_shoulder': (81.865, 17.11, 12.631), 'right_elbow': (25.645, 23.545),
         'right_wrist': (3.443, -22.227),
     })
     human.KeyJoints(23.0, {
         'spine_lumbar': (0.695, -18.274, 5.478), 'spine_thoracic': (-11.51, -5.916, 6.981),
-        'neck': (4.645, -0.4, -12.48), 'head': (4.778, -0.014), 'right_clavicle': (15.303, 5.732),
+        'neck': (6.655, 0.0, -12.589), 'head': (2.852, 0.0), 'right_clavicle': (15.303, 5.732),
         'right_shoulder': (80.627, 10.849, 8.679), 'right_elbow': (27.109, 18.721),
         'right_wrist': (1.827, -27.563),
     })
     human.KeyJoints(23.1, {
         'spine_lumbar': (5.927, -14.348, 10.033), 'spine_thoracic': (-10.657, -0.641, 9.849),
-        'neck': (1.686, -0.483, -13.903), 'head': (1.823, -0.015), 'right_clavicle': (4.844, 8.271),
+        'neck': (2.417, 0.0, -14.013), 'head': (1.036, 0.0), 'right_clavicle': (4.844, 8.271),
         'right_shoulder': (85.636, 7.932, 1.412), 'right_elbow': (32.993, 11.258),
         'right_wrist': (-1.598, -29.795),
     })
@@ -1252,29 +1250,29 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.456, 0.0, -14.888), 'head': (0.195, 0.0), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.248408, duration=0.4)
-    human.KeyJoints(23.3, {'neck': (1.903, -0.592, -16.234), 'head': (1.122, -0.069)})
-    human.KeyJoints(23.4, {'neck': (11.488, -0.993, -23.48), 'head': (5.141, -0.393)})
+    human.KeyJoints(23.3, {'neck': (1.984, 0.0, -16.085), 'head': (0.85, 0.0)})
+    human.KeyJoints(23.4, {'neck': (11.24, 0.0, -23.342), 'head': (4.817, 0.0)})
     human.KeyJoints(23.5, {
-        'neck': (24.221, -1.526, -33.106), 'head': (10.48, -0.823),
+        'neck': (23.537, 0.0, -32.982), 'head': (10.087, 0.0),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
-        'neck': (33.599, -1.919, -40.196), 'head': (14.413, -1.139),
+        'neck': (32.593, 0.0, -40.082), 'head': (13.969, 0.0),
         'right_shoulder': (87.257, 7.579, 0.989), 'right_elbow': (34.444, 10.924),
         'right_wrist': (-1.493, -29.466),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.648408, duration=10.483707)
     human.KeyJoints(23.7, {
-        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187),
+        'neck': (33.946, 0.0, -41.142), 'head': (14.548, 0.0),
         'right_shoulder': (79.576, 9.299, -0.303), 'right_elbow': (35.153, 10.334),
         'right_wrist': (-1.918, -26.427),
     })
@@ -1305,21 +1303,21 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
         'spine_lumbar': (6.962, -13.822, 9.604), 'spine_thoracic': (-8.557, -4.49, 9.157),
-        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.72, 7.941),
+        'neck': (33.896, 0.0, -41.152), 'head': (14.527, 0.0), 'right_clavicle': (2.72, 7.941),
         'right_shoulder': (17.604, 33.544, -16.772), 'right_elbow': (37.499, 2.844),
         'right_wrist': (-6.563, -4.852),
     })
     human.KeyJoints(24.4, {
         'spine_lumbar': (7.723, -11.476, 9.76), 'spine_thoracic': (-8.704, -4.19, 9.291),
-        'neck': (34.479, -2.423, -41.511), 'head': (14.445, -1.262),
-        'right_clavicle': (6.129, 9.157), 'right_shoulder': (16.103, 38.917, -10.822),
-        'right_elbow': (34.675, 8.981), 'right_wrist': (-6.273, 3.321),
+        'neck': (32.953, 0.0, -41.433), 'head': (14.123, 0.0), 'right_clavicle': (6.129, 9.157),
+        'right_shoulder': (16.103, 38.917, -10.822), 'right_elbow': (34.675, 8.981),
+        'right_wrist': (-6.273, 3.321),
     })
     human.KeyJoints(24.5, {
         'spine_lumbar': (9.645, -5.703, 10.196), 'spine_thoracic': (-9.523, -3.797, 9.695),
-        'neck': (33.406, -3.164, -41.679), 'head': (13.473, -1.45),
-        'right_clavicle': (19.958, 12.221), 'right_shoulder': (13.005, 45.347, 3.094),
-        'right_elbow': (38.386, 25.674), 'right_wrist': (-9.006, 8.391),
+        'neck': (30.878, 0.0, -41.472), 'head': (13.233, 0.0), 'right_clavicle': (19.958, 12.221),
+        'right_shoulder': (13.005, 45.347, 3.094), 'right_elbow': (38.386, 25.674),
+        'right_wrist': (-9.006, 8.391),
     })
     human.KeyJoints(24.6, {
         'right_clavicle': (22.486, 8.92), 'right_shoulder': (13.207, 41.127, 5.112),
@@ -1708,44 +1706,44 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(33.8, {
         'spine_lumbar': (9.649, -5.691, 10.197), 'spine_thoracic': (-9.525, -3.796, 9.695),
-        'neck': (33.404, -3.165, -41.679), 'head': (13.471, -1.451),
-        'right_clavicle': (22.118, 12.116), 'right_shoulder': (13.119, 44.234, 4.785),
-        'right_elbow': (38.872, 27.022), 'right_wrist': (-8.956, 6.683),
+        'neck': (30.873, 0.0, -41.472), 'head': (13.231, 0.0), 'right_clavicle': (22.118, 12.116),
+        'right_shoulder': (13.119, 44.234, 4.785), 'right_elbow': (38.872, 27.022),
+        'right_wrist': (-8.956, 6.683),
     })
     human.KeyJoints(33.9, {
         'spine_lumbar': (8.451, -9.766, 9.783), 'spine_thoracic': (-8.774, -3.975, 9.297),
-        'neck': (34.084, -2.7, -41.622), 'head': (14.102, -1.341), 'right_clavicle': (15.447, 2.6),
+        'neck': (32.125, 0.0, -41.512), 'head': (13.768, 0.0), 'right_clavicle': (15.447, 2.6),
         'right_shoulder': (14.723, 32.131, -1.568), 'right_elbow': (41.505, 14.795),
         'right_wrist': (-6.318, 2.895),
     })
     human.KeyJoints(34.0, {
         'spine_lumbar': (7.069, -13.708, 9.491), 'spine_thoracic': (-8.529, -4.492, 9.045),
-        'neck': (34.862, -2.004, -41.047), 'head': (14.903, -1.202),
-        'right_clavicle': (4.729, 6.192), 'right_shoulder': (19.482, 31.401, -14.047),
-        'right_elbow': (35.861, 2.645), 'right_wrist': (-5.0, -3.895),
+        'neck': (33.75, 0.0, -41.02), 'head': (14.464, 0.0), 'right_clavicle': (4.729, 6.192),
+        'right_shoulder': (19.482, 31.401, -14.047), 'right_elbow': (35.861, 2.645),
+        'right_wrist': (-5.0, -3.895),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.060115, duration=0.072)
     human.KeyJoints(34.1, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.794, 7.882),
+        'neck': (33.946, 0.0, -41.142), 'head': (14.548, 0.0), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321358)
-    human.KeyJoints(34.2, {'neck': (33.724, -1.696, -37.067), 'head': (14.207, -1.188)})
-    human.KeyJoints(34.3, {'neck': (29.081, -0.674, -21.827), 'head': (11.32, -1.193)})
+    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321568)
+    human.KeyJoints(34.2, {'neck': (32.618, 0.0, -36.953), 'head': (13.979, 0.0)})
+    human.KeyJoints(34.3, {'neck': (27.782, 0.0, -21.7), 'head': (11.907, 0.0)})
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
-        'neck': (24.727, 0.285, -7.536), 'head': (8.613, -1.198),
+        'neck': (23.242, 0.0, -7.382), 'head': (9.961, 0.0),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.453473, duration=10.463136)
+    human.LookAt((20.0, 105.0, 111.6), start=34.453683, duration=10.462927)
     human.KeyJoints(34.5, {
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
+        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0),
         'right_shoulder': (18.864, 31.799, -15.418), 'right_elbow': (37.439, 3.55),
         'right_wrist': (-6.304, -5.742),
     })
@@ -1768,7 +1766,7 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(35.0, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.794, 7.882),
+        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
@@ -1777,21 +1775,21 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
         'spine_lumbar': (6.658, -14.175, 9.672), 'spine_thoracic': (-8.769, -4.686, 9.329),
-        'neck': (24.036, 0.438, -5.109), 'head': (8.283, -1.198), 'right_clavicle': (2.356, 8.139),
+        'neck': (22.602, 0.0, -4.986), 'head': (9.687, 0.0), 'right_clavicle': (2.356, 8.139),
         'right_shoulder': (56.181, 2.633, 10.928), 'right_elbow': (32.422, 18.28),
         'right_wrist': (-1.166, -20.604),
     })
     human.KeyJoints(35.2, {
         'spine_lumbar': (0.714, -18.592, 10.926), 'spine_thoracic': (-13.311, -8.489, 12.712),
-        'neck': (26.988, 0.065, -9.36), 'head': (11.993, -1.193),
-        'right_clavicle': (11.635, 12.561), 'right_shoulder': (51.239, 10.326, 14.88),
-        'right_elbow': (24.893, 23.851), 'right_wrist': (-0.083, -22.642),
+        'neck': (27.356, 0.0, -9.264), 'head': (11.724, 0.0), 'right_clavicle': (11.635, 12.561),
+        'right_shoulder': (51.239, 10.326, 14.88), 'right_elbow': (24.893, 23.851),
+        'right_wrist': (-0.083, -22.642),
     })
     human.KeyJoints(35.3, {
         'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
-        'neck': (27.886, -0.024, -10.49), 'head': (12.886, -1.196),
-        'right_clavicle': (19.261, 14.94), 'right_shoulder': (51.77, 12.554, 21.247),
-        'right_elbow': (23.072, 31.064), 'right_wrist': (2.255, -25.752),
+        'neck': (28.617, 0.0, -10.397), 'head': (12.264, 0.0), 'right_clavicle': (19.261, 14.94),
+        'right_shoulder': (51.77, 12.554, 21.247), 'right_elbow': (23.072, 31.064),
+        'right_wrist': (2.255, -25.752),
     })
     human.KeyJoints(35.4, {
         'right_clavicle': (12.442, 6.769), 'right_shoulder': (47.177, 4.321, 15.11),
@@ -2176,57 +2174,56 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(44.5, {
         'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
-        'neck': (27.886, -0.024, -10.49), 'head': (12.886, -1.196),
-        'right_clavicle': (15.594, 14.68), 'right_shoulder': (50.766, 12.681, 18.07),
-        'right_elbow': (22.216, 27.606), 'right_wrist': (1.2, -23.314),
+        'neck': (28.617, 0.0, -10.397), 'right_clavicle': (15.594, 14.68),
+        'right_shoulder': (50.766, 12.681, 18.07), 'right_elbow': (22.216, 27.606),
+        'right_wrist': (1.2, -23.314),
     })
     human.KeyJoints(44.6, {
         'spine_lumbar': (-0.89, -19.888, 11.376), 'spine_thoracic': (-14.283, -9.545, 13.799),
-        'neck': (27.819, -0.017, -10.402), 'head': (12.819, -1.195),
-        'right_clavicle': (19.919, 14.215), 'right_shoulder': (51.707, 11.566, 21.414),
-        'right_elbow': (24.044, 31.111), 'right_wrist': (2.255, -26.478),
+        'neck': (28.523, 0.0, -10.309), 'head': (12.224, 0.0), 'right_clavicle': (19.919, 14.215),
+        'right_shoulder': (51.707, 11.566, 21.414), 'right_elbow': (24.044, 31.111),
+        'right_wrist': (2.255, -26.478),
     })
     human.KeyJoints(44.7, {
         'spine_lumbar': (4.92, -15.818, 9.936), 'spine_thoracic': (-10.439, -6.098, 10.386),
-        'neck': (24.874, 0.266, -6.766), 'head': (9.571, -1.193), 'right_clavicle': (11.391, 2.821),
+        'neck': (24.142, 0.0, -6.665), 'head': (10.347, 0.0), 'right_clavicle': (11.391, 2.821),
         'right_shoulder': (50.711, -3.165, 13.775), 'right_elbow': (38.383, 21.274),
         'right_wrist': (-1.123, -27.942),
     })
     human.KeyJoints(44.8, {
         'spine_lumbar': (6.998, -14.013, 9.64), 'spine_thoracic': (-8.586, -4.521, 9.201),
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.73, 7.941),
+        'neck': (22.375, 0.0, -4.807), 'head': (9.589, 0.0), 'right_clavicle': (2.73, 7.941),
         'right_shoulder': (55.848, 2.166, 10.943), 'right_elbow': (34.071, 18.507),
         'right_wrist': (-1.361, -21.581),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)
     human.KeyJoints(44.9, {
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
+        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0),
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
+    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.285826)
     human.KeyJoints(45.0, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'neck': (23.271, -0.26, -10.041),
-        'head': (7.587, -1.211),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'neck': (21.149, 0.0, -9.968), 'head': (9.064, 0.0),
     })
-    human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
+    human.KeyJoints(45.1, {'neck': (18.141, 0.0, -22.869), 'head': (7.775, 0.0)})
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
-        'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
-        'right_clavicle': (2.794, 7.882), 'right_shoulder': (56.302, 2.111, 11.17),
-        'right_elbow': (33.176, 18.453), 'right_wrist': (-1.155, -21.049),
+        'neck': (16.382, 0.0, -30.414), 'head': (7.021, 0.0), 'right_clavicle': (2.794, 7.882),
+        'right_shoulder': (56.302, 2.111, 11.17), 'right_elbow': (33.176, 18.453),
+        'right_wrist': (-1.155, -21.049),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
+    human.LookAt((0.0, 120.0, 118.0), start=45.202436, duration=0.848604)
     human.KeyJoints(45.3, {
-        'neck': (20.398, -3.354, -31.314), 'right_shoulder': (56.449, 5.333, 9.913),
-        'right_elbow': (39.15, 18.907), 'right_wrist': (-1.9, -20.327),
+        'right_shoulder': (56.449, 5.333, 9.913), 'right_elbow': (39.15, 18.907),
+        'right_wrist': (-1.9, -20.327),
     })
     human.KeyJoints(45.4, {
-        'head': (5.285, -1.307), 'right_shoulder': (57.916, 14.725, 6.061),
-        'right_elbow': (51.891, 19.995), 'right_wrist': (-3.726, -18.665),
+        'right_shoulder': (57.916, 14.725, 6.061), 'right_elbow': (51.891, 19.995),
+        'right_wrist': (-3.726, -18.665),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TO on r_arm at panel_latch
     human.KeyJoints(45.5, {
@@ -2244,15 +2241,15 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
     human.KeyJoints(46.0, {
-        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
+        'neck': (16.381, 0.0, -30.42), 'head': (7.021, 0.0),
         'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
-    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
-    human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
+    human.KeyJoints(46.1, {'neck': (16.611, 0.0, -30.574), 'head': (7.119, 0.0)})
+    human.KeyJoints(46.2, {'neck': (17.893, 0.0, -31.43), 'head': (7.668, 0.0)})
     human.KeyJoints(46.3, {
-        'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
+        'neck': (18.882, 0.0, -32.092), 'head': (8.092, 0.0),
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
         'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
@@ -2262,7 +2259,6 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=46.313839, duration=0.867635)
     human.KeyJoints(46.4, {
-        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514),
         'right_shoulder': (73.767, 23.618, 1.961), 'right_elbow': (33.865, 19.603),
         'right_wrist': (-1.966, -18.068), 'left_shoulder': (9.317, 5.386, 11.496),
         'left_elbow': (34.224, 17.198), 'left_wrist': (0.015, -0.061),
@@ -2298,7 +2294,7 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(47.0, {
         'spine_lumbar': (12.204, -12.439, 8.453), 'spine_thoracic': (-11.745, -5.464, 7.89),
-        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (5.033, 8.82),
+        'neck': (18.903, 0.0, -32.105), 'head': (8.101, 0.0), 'right_clavicle': (5.033, 8.82),
         'right_shoulder': (31.529, 35.932, -8.762), 'right_elbow': (89.81, 22.759),
         'right_wrist': (-12.314, -14.725), 'left_clavicle': (-1.286, 2.174),
         'left_shoulder': (85.084, -30.236, 15.109), 'left_elbow': (20.449, 18.128),
@@ -2308,10 +2304,11 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(47.1, {
         'spine_lumbar': (16.336, -11.647, 7.631), 'spine_thoracic': (-14.345, -6.325, 6.982),
-        'right_clavicle': (6.785, 9.678), 'right_shoulder': (32.723, 37.229, -9.557),
-        'right_elbow': (90.674, 22.828), 'right_wrist': (-12.513, -14.599),
-        'left_clavicle': (-2.339, 3.868), 'left_shoulder': (89.156, -29.383, 14.762),
-        'left_elbow': (20.636, 18.172), 'left_wrist': (0.955, -5.547),
+        'neck': (17.891, 0.0, -31.004), 'right_clavicle': (6.785, 9.678),
+        'right_shoulder': (32.723, 37.229, -9.557), 'right_elbow': (90.674, 22.828),
+        'right_wrist': (-12.513, -14.599), 'left_clavicle': (-2.339, 3.868),
+        'left_shoulder': (89.156, -29.383, 14.762), 'left_elbow': (20.636, 18.172),
+        'left_wrist': (0.955, -5.547),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
@@ -2320,39 +2317,36 @@ def remove_access_panel_cad():
     human.KeyRoot(47.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.2, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
-        'neck': (20.216, -3.001, -31.124), 'head': (6.194, -1.656),
-        'right_clavicle': (7.019, 9.794), 'right_shoulder': (32.91, 37.386, -9.647),
-        'left_clavicle': (-2.48, 4.095), 'left_shoulder': (89.922, -29.245, 14.7),
-        'left_elbow': (20.254, 18.178), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'neck': (17.048, 0.0, -29.983), 'head': (7.306, 0.0), 'right_clavicle': (7.019, 9.794),
+        'right_shoulder': (32.91, 37.386, -9.647), 'left_clavicle': (-2.48, 4.095),
+        'left_shoulder': (89.922, -29.245, 14.7), 'left_elbow': (20.254, 18.178),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
     human.Walk((131.346, 0.0, 22.472), start=47.253474, duration=5.147368)
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
     human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551), 'right_elbow': (90.762, 22.836),
+        'neck': (15.856, 0.0, -27.886), 'head': (6.833, 0.0), 'right_elbow': (90.762, 22.836),
         'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
         'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
     human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872),
-        'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
-        'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
-        'left_ankle': (7.387, 0.62),
+        'neck': (8.74, 0.0, -15.371), 'head': (3.779, 0.0), 'right_hip': (7.171, -0.397, -1.747),
+        'right_knee': (14.32,), 'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77),
+        'left_knee': (17.258,), 'left_ankle': (7.387, 0.62),
     })
     human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
-        'right_hip': (6.913, -0.846, -4.294), 'right_knee': (14.599,),
-        'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
-        'left_ankle': (13.045, 1.381),
+        'neck': (1.363, 0.0, -2.397), 'head': (0.613, 0.0), 'right_hip': (6.913, -0.846, -4.294),
+        'right_knee': (14.599,), 'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191),
+        'left_knee': (28.366,), 'left_ankle': (13.045, 1.381),
     })
     human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
+        'neck': (-0.056, 0.0, 0.098), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
         'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
         'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,), 'left_ankle': (18.33, 1.841),
     })
@@ -2630,11 +2624,11 @@ def remove_access_panel_cad():
         'left_knee': (5.09,), 'left_ankle': (1.987, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
+    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.3125)
     human.KeyRoot(52.5, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
+    human.KeyJoints(52.5, {'neck': (8.335, 8.038, -4.151), 'head': (3.572, 2.679)})
     human.KeyJoints(52.6, {
-        'neck': (23.728, 22.881, -14.015), 'head': (10.169, -7.627),
+        'neck': (24.527, 23.651, -12.216), 'head': (10.512, 7.884),
         'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
         'left_elbow': (20.254, 18.178), 'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,),
         'right_ankle': (1.909, 0.0), 'left_hip': (3.031, 0.0, 0.0), 'left_knee': (4.935,),
@@ -2643,47 +2637,48 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
-        'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
-        'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
-        'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
-        'left_elbow': (20.451, 18.166), 'left_wrist': (0.905, -5.539),
+        'neck': (34.814, 33.571, -17.339), 'head': (14.92, 11.19),
+        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.775, 22.837),
+        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.719, -29.213, 14.723),
+        'left_elbow': (20.479, 18.166), 'left_wrist': (0.904, -5.537),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
+    human.LookAt((160.0, 90.0, 20.0), start=52.713343, duration=0.648558)
     human.KeyJoints(52.8, {
-        'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
-        'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
-        'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
+        'neck': (35.0, 33.75, -17.431), 'right_shoulder': (29.748, 35.989, -9.049),
+        'right_elbow': (91.373, 22.868), 'right_wrist': (-12.54, -14.334),
+        'left_shoulder': (83.084, -28.036, 15.61), 'left_elbow': (27.221, 17.668),
+        'left_wrist': (0.209, -4.18),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
-        'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
-        'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
+        'head': (15.0, 11.25), 'right_shoulder': (19.97, 31.61, -7.109),
+        'right_elbow': (93.772, 22.959), 'right_wrist': (-12.654, -13.509),
+        'left_shoulder': (65.642, -24.748, 18.136), 'left_elbow': (43.254, 16.182),
+        'left_wrist': (-1.722, -0.547),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
-        'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
-        'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
+        'right_shoulder': (5.321, 24.375, -3.194), 'right_elbow': (97.715, 23.079),
+        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.503, -19.649, 21.337),
+        'left_elbow': (62.42, 14.158), 'left_wrist': (-4.471, 3.877),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
-        'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
-        'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
+        'right_shoulder': (-8.226, 15.952, 2.926), 'right_elbow': (99.624, 23.159),
+        'right_wrist': (-12.531, -11.14), 'left_shoulder': (20.919, -12.952, 23.562),
+        'left_elbow': (78.036, 12.531), 'left_wrist': (-7.449, 7.525),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
-        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
-        'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
+        'right_shoulder': (-15.566, 9.215, 10.058), 'right_elbow': (100.11, 23.131),
+        'right_wrist': (-11.52, -10.444), 'left_shoulder': (7.028, -5.041, 23.588),
+        'left_elbow': (88.729, 11.493), 'left_wrist': (-10.751, 10.539),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
-        'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
-        'left_elbow': (95.405, 11.706), 'left_wrist': (-11.963, 12.632),
+        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.155),
+        'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
+        'left_elbow': (95.414, 11.693), 'left_wrist': (-11.973, 12.631),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
@@ -2696,7 +2691,7 @@ def remove_access_panel_cad():
     human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(53.433901, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
-        'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
+        'neck': (35.0, 33.75, -17.431), 'head': (15.0, 11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'right_wrist': (-11.305, -9.547), 'left_clavicle': (-2.48, 4.095),
         'left_shoulder': (0.506, -1.597, 22.751), 'left_elbow': (95.961, 11.791),

@@ -169,15 +169,19 @@ def approach_windows(
     """Per hand, the (lo, hi) bounds of its movements to a contact (``lo <= t < hi``): from
     the start of a TA segment on its arm track to the end of the TO that continues it, where
     one of its ``pins`` windows (``pin_windows``) starts. The pace pass planned the two as one
-    movement (one velocity bell from the TA's start to the contact at the TO's end)."""
+    movement (one velocity bell from the TA's start to the contact at the TO's end). Not the
+    moves of a held part (the grip closed: two hands carrying a 4 kg cassette down from the
+    ceiling had their elbows solved straight, 45 deg a frame at the TO, bench/procedures)."""
     out = {}
     for hand, track in HANDS.items():
         starts = np.sort(pins[hand][0]) if hand in pins else np.empty(0)
         segs = [s for s in ir.segments if s.track == track]
+        grips = sorted((s for s in ir.segments if s.track == hand and s.kind == "grip"),
+                       key=lambda s: s.start)  # fmt: skip
         lo, hi = [], []
         for seg in segs:
-            if seg.kind != "TA" or ends_on_site(seg):
-                continue
+            if seg.kind != "TA" or ends_on_site(seg) or closed_during(grips, seg.start, seg.end):
+                continue  # a held part's move is the carry pass's to re-solve
             k = np.searchsorted(starts, seg.end - 1e-6)
             if k == starts.size or abs(starts[k] - seg.end) >= 1e-6:
                 continue

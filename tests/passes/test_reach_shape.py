@@ -92,3 +92,34 @@ def test_a_part_left_by_one_hand_is_not_held_by_both(sex: str, percentile: int) 
     limit = np.full(steps.shape, 12.0)
     limit[np.ix_(in_turn, turning)] = 20.0
     assert np.all(steps <= limit), (steps - limit).max()
+
+
+@pytest.mark.parametrize(("sex", "percentile"), [("male", 1), ("male", 10), ("male", 50)])
+def test_reaches_from_a_kneel_are_one_movement_while_the_trunk_leans(
+    sex: str, percentile: int
+) -> None:
+    """Kneeling, the left hand brings a plug far ahead and the right hand reaches it to screw it
+    (tests/data/reach/r03): the balance pass leans the trunk back while the right hand is on its
+    way. The hand rode on the trunk and was put back on its path in the TO's first frames (male
+    P1: LDLJ -9.37 at main, ddc41e4); the arm now takes its part in the correction over the
+    whole movement (``balance.approach_arms``): every reach one speed peak, LDLJ >= -8 (-7.64),
+    at rest in the frame of contact."""
+    ir = _compiled("r03_kneel_reach_far.mtask", sex, percentile)
+    frames = ir.frames
+    assert frames is not None
+    dt = 1.0 / frames.fps
+    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    moves = movements(ir)
+    assert len(moves) >= 3
+    for m in moves:
+        (effector,) = m.effectors
+        a = int(np.searchsorted(frames.time, m.start - 1e-9))
+        b = int(np.searchsorted(frames.time, m.end - 1e-9))
+        p = site_positions(ir.skeleton, pose, effector)[a : b + 1]
+        speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt
+        if len(p) < 4 or speed.sum() * dt < 0.01:
+            continue  # too short to judge (bench/human.py)
+        peaks, _ = find_peaks(np.r_[0.0, speed, 0.0], prominence=0.1 * speed.max())
+        assert len(peaks) == 1, (effector, np.round(speed * 100, 1))
+        assert speed[-1] <= 0.05, (effector, speed[-1])
+        assert _ldlj(p, dt) >= -8.0, (effector, m.start, _ldlj(p, dt))

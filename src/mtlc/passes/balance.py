@@ -79,6 +79,7 @@ from mtlc.metrics import (
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import REPORT_TOL, closed_during, on_site
 from mtlc.passes.joint_speed import speed_limited
+from mtlc.passes.profile import minimum_jerk
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 6
@@ -160,6 +161,100 @@ def pin_windows(
             hi.append(end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
     return out
+
+
+def approach_windows(
+    ir: MotionIR, pins: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of its movements to a contact (``lo <= t < hi``): from
+    the start of a TA segment on its arm track to the end of the TO that continues it, where
+    one of its ``pins`` windows (``pin_windows``) starts. The pace pass planned the two as one
+    movement (one velocity bell from the TA's start to the contact at the TO's end). Not the
+    moves of a held part (the grip closed: two hands carrying a 4 kg cassette down from the
+    ceiling had their elbows solved straight, 45 deg a frame at the TO, bench/procedures)."""
+    out = {}
+    for hand, track in HANDS.items():
+        starts = np.sort(pins[hand][0]) if hand in pins else np.empty(0)
+        segs = [s for s in ir.segments if s.track == track]
+        grips = sorted((s for s in ir.segments if s.track == hand and s.kind == "grip"),
+                       key=lambda s: s.start)  # fmt: skip
+        lo, hi = [], []
+        for seg in segs:
+            if seg.kind != "TA" or ends_on_site(seg) or closed_during(grips, seg.start, seg.end):
+                continue  # a held part's move is the carry pass's to re-solve
+            k = np.searchsorted(starts, seg.end - 1e-6)
+            if k == starts.size or abs(starts[k] - seg.end) >= 1e-6:
+                continue
+            to = [s for s in segs if s.kind == "TO" and abs(s.start - seg.end) < 1e-6]
+            if to:
+                lo.append(seg.start - 1e-9)
+                hi.append(to[0].end - 1e-9)
+        out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
+    return out
+
+
+def approach_arms(
+    skel: Skeleton,
+    frames: Frames,
+    q_start: FloatArray,
+    root_start: FloatArray,
+    approaches: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> None:
+    """Each arm's part in the correction, over a movement to a contact (``approach_windows``)
+    planned as one movement, in place: the hand goes where the pace pass planned it, off that
+    path by what the corrected trunk carries it, less and less as the movement goes on
+    (1 - its minimum-jerk progress, ``profile.minimum_jerk``), and on it at the contact. The
+    shoulder and elbow solve for that place, each frame from the arm's correction turned in
+    over the movement in joint space (from what the arm has at its start, none mostly, to what
+    the pinned hand's solve gives it at the contact); the wrist keeps that turned-in angle.
+
+    Left as it was, a hand on its way to a contact rode on the corrected trunk (the kneeling
+    fuel filter's trunk leans back up to 14 deg while the arm reaches forward: the hand
+    110-125 mm off its path) and was put back on its path from the TO's first frame:
+    ``arms_in_time`` let the arm take that up at a person's fastest joint speed in the last two
+    or three frames of the TA, a second speed peak or an LDLJ under -8 and 13-19 deg wrist
+    steps; and the whole arm solved frame by frame on the TO's path near its reach turned the
+    wrist up to 19 deg a frame (female P50; issue 19). Turned in over the joints alone, the
+    hand rode on the trunk until the contact and touched at 44-52 cm/s; the wrist in the solve,
+    it leant on the wrist where the elbow ran straight (29 deg a frame)."""
+    for hand, (lows, highs) in approaches.items():
+        cols = arm_dofs(skel, hand)
+        for lo, hi in zip(lows, highs, strict=True):
+            w = np.flatnonzero((frames.time >= lo) & (frames.time < hi))
+            end = int(np.searchsorted(frames.time, hi))
+            if w.size == 0 or end >= len(frames.time):
+                continue
+            ridden = frames.q[w].copy()  # the corrected body with the arm as it was planned
+            ridden[:, cols] = q_start[np.ix_(w, cols)]
+            if not np.any(ridden != q_start[w]) and not np.any(frames.q[end] != q_start[end]):
+                continue  # nothing was corrected
+            first = frames.q[w[0], cols] - q_start[w[0], cols]
+            at_contact = frames.q[end, cols] - q_start[end, cols]
+            s = minimum_jerk((frames.time[w] - lo) / max(frames.time[end] - lo, 1e-9))[:, None]
+            turned_in = q_start[np.ix_(w, cols)] + (1.0 - s) * first + s * at_contact
+            rot = frames.root_rotation[w]
+            planned = site_positions(
+                skel, forward(skel, q_start[w], root_start[w], rot, with_axes=False), hand
+            )
+            carried = site_positions(
+                skel, forward(skel, ridden, frames.root_position[w], rot, with_axes=False), hand
+            )
+            goal = [Goal(hand, position=planned + (1.0 - s) * (carried - planned))]
+            seed = ridden
+            seed[:, cols] = np.clip(turned_in, skel.lower[cols], skel.upper[cols])
+            model = prepare(
+                skel, goal, seed, dofs=shoulder_elbow(skel, hand),
+                root_position=frames.root_position[w], root_rotation=rot,
+            )  # fmt: skip
+            res = solve_ta(
+                skel, goal, seed, model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40
+            )
+            frames.q[np.ix_(w, cols)] = res.q[:, cols]
+
+
+def shoulder_elbow(skel: Skeleton, hand: str) -> list[int]:
+    """The dofs of the shoulder and the elbow of the arm that carries ``hand``."""
+    return skel.dofs_of_joints([f"{hand[0]}_shoulder", f"{hand[0]}_elbow"])
 
 
 def hand_pins(
@@ -424,15 +519,18 @@ class Segments(NamedTuple):
     rests: list[RestWindows]
     pins: dict[str, tuple[np.ndarray, np.ndarray]]
     holding: Held
+    approaches: dict[str, tuple[np.ndarray, np.ndarray]]
 
 
 def read_segments(ir: MotionIR) -> Segments:
+    pins = pin_windows(ir, reached_only=True)
     return Segments(
         swing_spans(ir),
         walk_spans(ir),
         hand_rest_windows(ir),
-        pin_windows(ir, reached_only=True),
+        pins,
         held(ir),
+        approach_windows(ir, pins),
     )
 
 
@@ -541,6 +639,7 @@ def balance_frames(
         return before, after, failed
     t = frames.time
     q_start = frames.q.copy()
+    root_start = frames.root_position.copy()
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -735,8 +834,13 @@ def balance_frames(
     at = np.searchsorted(rows, raw)
     frames.q[raw], frames.root_position[raw] = q[at], root[at]
     after[raw] = margin[at]
-    # the arms re-solved frame by frame for their pinned hands, made continuous in time
-    frames.q[:] = arms_in_time(skel, q_start, frames.q, t, pins)
+    # the arms re-solved frame by frame for their pinned hands, made continuous in time: the
+    # correction at a contact's start turned in over its approach, then no joint faster than
+    # a person's
+    approach_arms(skel, frames, q_start, root_start, segs.approaches)
+    moving = hand_pins(ir, t, segs.approaches)
+    held_still = {hand: pins[hand] | moving[hand] for hand in pins}
+    frames.q[:] = arms_in_time(skel, q_start, frames.q, t, held_still)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from mtlc.body import build_manikin, forward, site_positions
-from mtlc.body.capsules import self_intersection
+from mtlc.body.capsules import ARM_LIMBS, limbs_of_sides, self_intersection
 from mtlc.body.ik.clearance import arm_dofs, keep_clear, penetration
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
@@ -214,6 +214,24 @@ def test_clear_arms_leaves_arms_that_are_clear_alone() -> None:
     roots = np.tile([0.0, 1.0, 0.0], (3, 1))  # standing upright: the comfort arms are clear
     arms, depth = clear_arms(skel, frames, roots, ("r", "l"))
     assert arms == {} and depth <= 0.0
+
+
+def test_one_arms_self_intersection_is_the_whole_bodys_columns_to_the_bit() -> None:
+    """The reach checks (pace, approach) measure the moving arms' limbs only: the same numbers
+    as those limbs' columns of the four-limb measurement, which they used to drop half of."""
+    skel = build_manikin("gb10000_1988", "male", 95)
+    rng = np.random.default_rng(7)
+    q = skel.lower + (skel.upper - skel.lower) * rng.random((200, skel.n_dofs))
+    pose = forward(skel, q, np.tile([0.0, 1.0, 0.0], (200, 1)), with_axes=False)
+    full, pairs = self_intersection(skel, pose)
+    assert limbs_of_sides(("r", "l")) == ARM_LIMBS and limbs_of_sides(()) == ()
+    for sides in ({"r"}, {"l"}, {"r", "l"}):
+        limbs = limbs_of_sides(sides)
+        assert {limb.name.split()[0][0] for limb in limbs} == sides
+        part, part_pairs = self_intersection(skel, pose, limbs)
+        cols = [c for c, (limb, _) in enumerate(pairs) if limb.split()[0][0] in sides]
+        assert part_pairs == [pairs[c] for c in cols]
+        assert np.array_equal(part, full[:, cols])
 
 
 def test_part_ends_keep_the_centre_and_axis_and_set_the_length() -> None:

@@ -35,6 +35,7 @@ are the self-contact model's (one definition of each); the rest are sized below.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -351,6 +352,13 @@ def side_limbs(side: str) -> tuple[Limb, ...]:
     """The forearm and hand of one side ("r" or "l")."""
     prefix = "right " if side == "r" else "left "
     return tuple(limb for limb in ARM_LIMBS if limb.name.startswith(prefix))
+
+
+def limbs_of_sides(sides: Collection[str]) -> tuple[Limb, ...]:
+    """The forearms and hands of ``sides`` ("r", "l"), in ``ARM_LIMBS``' order: what a check
+    of one arm's reach passes to ``self_intersection`` (the other arm's columns, half the
+    work, were computed and dropped)."""
+    return tuple(limb for limb in ARM_LIMBS if limb.name.split()[0][0] in sides)
 
 
 def clearance(

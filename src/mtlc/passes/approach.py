@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import forward, site_positions
-from mtlc.body.capsules import self_intersection
+from mtlc.body.capsules import limbs_of_sides, self_intersection
 from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
 from mtlc.body.ik.clearance import keep_clear
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
@@ -404,6 +404,7 @@ def clear_path(
     returns the poses and their fractions."""
     fracs, poses = list(fracs), list(poses)
     sides = sorted({s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")})
+    limbs = limbs_of_sides(sides)  # the moving arms' (the other arm's depth was dropped)
     steps = np.linspace(0.0, 1.0, PATH_SAMPLES)[1:-1]
 
     def deepest(keys: list[FloatArray]) -> tuple[float, FloatArray, int, float]:
@@ -414,9 +415,7 @@ def clear_path(
             state.skel, qs, np.broadcast_to(root[0], (len(qs), 3)),
             np.broadcast_to(root[1], (len(qs), 4)), with_axes=False,
         )  # fmt: skip
-        depth, pairs = self_intersection(state.skel, pose)  # (frames only, no dof axes)
-        mine = [c for c, (limb, _) in enumerate(pairs) if limb.split()[0][0] in sides]
-        deep = depth[:, mine].max(axis=1)
+        deep = self_intersection(state.skel, pose, limbs)[0].max(axis=1)  # (no dof axes)
         i = int(np.argmax(deep))
         return float(deep[i]), qs[i], i // len(steps), float(steps[i % len(steps)])
 

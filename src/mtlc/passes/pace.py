@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtlc.body import forward, part_site_positions
-from mtlc.body.capsules import self_intersection
+from mtlc.body.capsules import limbs_of_sides, self_intersection
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
@@ -257,12 +257,11 @@ def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> float:
     names = effectors + [FINGERTIPS[e] for e in effectors if e in FINGERTIPS]
     p = part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)
     deepest = max(0.0, ir.ground - float(p[..., 1].min()))
-    pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
-    depth, pairs = self_intersection(skel, pose)
-    sides = {e[0] for e in effectors}
-    mine = [c for c, (limb, _) in enumerate(pairs) if limb.split()[0][0] in sides]
+    # only the moving arms' limbs are measured (and the body posed only if there are any)
+    mine = limbs_of_sides({e[0] for e in effectors})
     if mine:
-        deepest = max(deepest, float(depth[:, mine].max()))
+        pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
+        deepest = max(deepest, float(self_intersection(skel, pose, mine)[0].max()))
     for seg in m.segments:
         normal = seg.goal.params.get("approach_normal") or seg.goal.params.get("normal")
         if normal is None or seg.goal.position is None:

@@ -639,7 +639,9 @@ def balance_frames(
         return before, after, failed
     t = frames.time
     q_start = frames.q.copy()
-    root_start = frames.root_position.copy()
+    approaching = any(lo.size for lo, _ in segs.approaches.values())
+    # the root before the corrections, for ``approach_arms`` only (24 bytes a frame)
+    root_start = frames.root_position.copy() if approaching else frames.root_position
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -837,9 +839,11 @@ def balance_frames(
     # the arms re-solved frame by frame for their pinned hands, made continuous in time: the
     # correction at a contact's start turned in over its approach, then no joint faster than
     # a person's
-    approach_arms(skel, frames, q_start, root_start, segs.approaches)
-    moving = hand_pins(ir, t, segs.approaches)
-    held_still = {hand: pins[hand] | moving[hand] for hand in pins}
+    held_still = pins
+    if approaching:
+        approach_arms(skel, frames, q_start, root_start, segs.approaches)
+        moving = hand_pins(ir, t, segs.approaches)
+        held_still = {hand: pins[hand] | moving[hand] for hand in pins}
     frames.q[:] = arms_in_time(skel, q_start, frames.q, t, held_still)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed

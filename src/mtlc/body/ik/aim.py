@@ -22,7 +22,6 @@ current rotation) unless the other sees the target better by more than ``near``.
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +41,6 @@ FREE_DAMPING = 1e-4
 COST_TOL = 1e-12  # a row whose |d − w|² fell by less than this in a step has converged
 MAX_STEP = 0.3  # rad: the largest change of a coordinate in one step
 FREE_FROM = 1e-5  # rad: a row aimed worse than this by yaw and pitch frees every dof
-SNAP = math.radians(2.0)  # rad: a freed dof this close to a limit is tried on it
 
 
 @dataclass(frozen=True)
@@ -394,41 +392,7 @@ def _past_the_limits(
     found, errors = _refine(chain, *many, starts.reshape(3 * n, -1), chain.free)
     errors = errors.reshape(3, n)
     best = np.argmin(errors, axis=0)
-    return _onto_near_limits(
-        chain, base_R, base_p, targets, found.reshape(3, n, -1)[best, np.arange(n)]
-    )
-
-
-def _aim_errors(
-    chain: HeadChain, base_R: FloatArray, base_p: FloatArray, targets: FloatArray, q: FloatArray
-) -> FloatArray:
-    """(N,) the angle between each row's eye line and the line from its eye to its target."""
-    look = _look(chain, base_R, base_p, q)
-    w = targets - look.eye
-    w = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-12)
-    d = look.direction / np.maximum(np.linalg.norm(look.direction, axis=1, keepdims=True), 1e-12)
-    return _angle(np.sum((d - w) ** 2, axis=1))
-
-
-def _onto_near_limits(
-    chain: HeadChain, base_R: FloatArray, base_p: FloatArray, targets: FloatArray, q: FloatArray
-) -> FloatArray:
-    """Each dof within ``SNAP`` of a limit tried on the limit, one at a time, kept where the
-    aim is better: the damped steps slow down against a stop and can end just short of it (male
-    P1, a target 24 deg past the turn: the neck at 79.4 of 80 deg, 7.0 deg off; 6.3 on it)."""
-    lo, hi = chain.free.lower, chain.free.upper
-    errors = _aim_errors(chain, base_R, base_p, targets, q)
-    for k in range(q.shape[1]):
-        near_lo, near_hi = q[:, k] - lo[k] <= SNAP, hi[k] - q[:, k] <= SNAP
-        rows = np.flatnonzero((near_lo | near_hi) & (q[:, k] > lo[k]) & (q[:, k] < hi[k]))
-        if not rows.size:
-            continue
-        tried = q[rows].copy()
-        tried[:, k] = np.where(near_lo[rows], lo[k], hi[k])
-        e = _aim_errors(chain, base_R[rows], base_p[rows], targets[rows], tried)
-        better = e < errors[rows]
-        q[rows[better]], errors[rows[better]] = tried[better], e[better]
-    return q
+    return found.reshape(3, n, -1)[best, np.arange(n)]
 
 
 def _other_side(

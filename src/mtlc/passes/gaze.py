@@ -1,10 +1,9 @@
 """Gaze: the neck and head keep the eyes on the work, within the neck's limits.
 
-Runs after TA and TO, so the trunk is where the reaches left it. ``mtlc.body.ik.aim`` aims the
-``gaze`` site's direction (the head's forward axis) at a target with the neck and head only (5
-dofs: a yaw and a pitch shared by the dofs in proportion to their ranges, Gauss-Newton over all
-rows at once); a target outside the neck's range gets the closest direction the limits allow
-(``result["angle_error"]`` says by how much). No diagnostic: looking
+Runs after TA and TO, so the trunk is where the reaches left it. The damped least squares
+solver aims the ``gaze`` site's direction (the head's forward axis) at a target (an ``aim``
+goal) with the neck and head only (5 dofs); a target outside the neck's range gets the closest
+direction the limits allow (``result["angle_error"]`` says by how much). No diagnostic: looking
 is not a goal a task fails on; a site the head cannot bring into view is lint's MT0607.
 
 Two kinds of head segments (track ``head``, kind ``gaze``):
@@ -30,23 +29,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import Skeleton, forward_part, site_direction, site_positions
-from mtlc.body.ik import default_dofs
-from mtlc.body.ik.aim import aim_head as aim_at
-from mtlc.body.ik.aim import head_yaw
+from mtlc.body import forward_part, site_direction, site_positions
+from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, GoalSpec, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.posture import RESTATERS
-from mtlc.passes.state import PoseState, mark, reanchor
+from mtlc.passes.state import PoseState, cached, mark, reanchor
 
 GAZE_TOLERANCE = math.radians(1.0)
+TRACK_TOLERANCE = math.radians(0.25)  # the solver's stop while following: well inside 1°
 REACH_KINDS = ("TA", "TO")
 SAMPLE_STEP = 0.05  # s: the longest gap between two solved head poses while following the work
 TURN_MIN = 0.2  # s: a head turn to a target close by (docs/passes.md, gaze: sources)
 TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
 TURN_FULL = math.radians(60.0)
 HEAD_PACE = math.radians(200.0)  # rad/s: a head's mean speed between keys (peaks ~1.5x)
+HEAD_SPEED = math.radians(240.0)  # rad/s: faster than a head turn (60 deg in TURN_MAX)
 NEAR_BRANCH = math.radians(10.0)  # aim given up to stay on the head's side of the neck
 SAME_TARGET = 1e-3  # m: targets closer than this are one target
 WORK_PAUSE = 0.5  # s: reaches closer than this in time are one stretch of work (a grasp between)
@@ -89,14 +88,14 @@ def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
         before = state.q_at(t0)
         root = state.root_at(t1)
-        q1 = aim_head(ir, state, before, target, t1, root)
+        q1 = aim_head(ir, ctx, state, before, target, t1, root)
         start, end = look_window(t0, t1, before[dofs], q1[dofs], free, max(limit, t1))
         # nothing is written between these reads: the same time gives the same pose and root
         q0 = before.copy() if start == t0 else state.q_at(start)
         if end != t1:
             root = state.root_at(end)
         if end > t1 + EPS:  # the body may have moved on by the time the head arrives
-            q1 = aim_head(ir, state, q1, target, end, root)
+            q1 = aim_head(ir, ctx, state, q1, target, end, root)
         err = float(aim_errors(skel, q1[None], root[0][None], root[1][None], target[None])[0])
         for seg in segs:
             seg.start, seg.end = min(seg.start, start), max(seg.end, end)
@@ -126,6 +125,7 @@ def look_window(
 
 def aim_head(
     ir: MotionIR,
+    ctx: PassContext,
     state: PoseState,
     q0: FloatArray,
     target: FloatArray,
@@ -133,15 +133,30 @@ def aim_head(
     root: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
     """The whole pose with the neck and head aimed at ``target`` from the body at ``t`` (its
-    root ``state.root_at(t)``, passed when the caller has it). A target past the neck's
-    rotation is seen about as badly from either limit: the head stays on the side ``q0`` turns
-    it to unless the other sees it better by more than ``NEAR_BRANCH`` (issue 19)."""
+    root ``state.root_at(t)``, passed when the caller has it)."""
     skel = ir.skeleton
+    dofs = default_dofs(skel, ["gaze"], "arm")
     root = state.root_at(t) if root is None else root
-    body = state.q_at(t)[None]
-    side = head_yaw(skel, np.asarray(q0, dtype=float)[None])
-    return aim_at(skel, body, root[0][None], root[1][None], np.asarray(target, dtype=float)[None],
-                  side=side, near=NEAR_BRANCH)[0]  # fmt: skip
+    body = state.q_at(t)
+    body[dofs] = q0[dofs]
+    base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
+    key = ("gaze", root[0].tobytes(), root[1].tobytes(), body[base].round(12).tobytes())
+    model = cached(
+        ctx.cache,
+        key,
+        lambda: prepare(skel, ["gaze"], body, root_position=root[0], root_rotation=root[1]),
+    )
+    goal = [Goal("gaze", aim=target)]
+    # the best of three starts, and the first start's own (what ``restarts=0`` gives), by one
+    # solve: the restarts begin where the first attempt stops
+    res = solve_ta(skel, goal, body, model=model, restarts=2, first_attempt=True)
+    assert res.first is not None
+    best, near = res.q[0], res.first[0]
+    errors = aim_errors(skel, np.stack([best, near]), np.stack([root[0]] * 2),
+                        np.stack([root[1]] * 2), np.stack([target] * 2))  # fmt: skip
+    # a target past the neck's range is seen about as badly from either limit: stay on the
+    # side the head is on rather than swing limit to limit (issue 19)
+    return near if errors[1] <= errors[0] + NEAR_BRANCH else best
 
 
 def aim_errors(
@@ -520,7 +535,7 @@ def follow_part(
     aims = np.array([a.target for a in plan])
     q_rows = body.q[idx]
     roots = (body.root_position[idx], body.root_rotation[idx])
-    q_head = aim_rows(skel, q_rows, roots, aims, float(head_yaw(skel, q_rows[:1])[0]))
+    q_head = aim_rows(skel, q_rows, roots, aims, times[idx])
     errors = aim_errors(skel, q_head, roots[0], roots[1], aims)
     kf_time = np.concatenate([[turn_start], times[idx]])
     kf_q = np.vstack([head0[None], q_head[:, dofs]])
@@ -547,24 +562,83 @@ def paced(kf_time: FloatArray, kf_q: FloatArray) -> FloatArray:
 
 
 def aim_rows(
-    skel: Skeleton,
+    skel: object,
     q_rows: FloatArray,
     roots: tuple[FloatArray, FloatArray],
     aims: FloatArray,
-    side: float,
+    times: FloatArray,
 ) -> FloatArray:
-    """Every row's pose with its head aimed (one vectorised solve, ``mtlc.body.ik.aim``).
+    """Solve the head of every row for its aim, one batch per target.
 
-    A target past the neck's rotation is seen about as well from either limit: every row keeps
-    the side the head is on (``side``, its rotation before the part; facing ahead, the side
-    the first row sees best) unless the other sees its target better by more than
-    ``NEAR_BRANCH`` (the neck swung 45 deg between two frames while a wrench swung on the access
-    panel, issue 19)."""
-    if side == 0.0:  # facing ahead: the first row takes the side that sees its target best
-        first = aim_at(skel, q_rows[:1], roots[0][:1], roots[1][:1], aims[:1])
-        side = float(head_yaw(skel, first)[0])
-    keep = np.full(len(q_rows), side)
-    return aim_at(skel, q_rows, roots[0], roots[1], aims, side=keep, near=NEAR_BRANCH)
+    Each target's first row is solved with restarts (the best of several starts: from a head
+    turned the other way a target far to the side has poor local minima) and its solution
+    starts the target's other rows, which then follow the body smoothly from one basin. A row
+    whose head is then further from the row before than a person turns it in that time is
+    solved again from that row (``keep_branch``)."""
+    out = np.array(q_rows, dtype=float, copy=True)
+    gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
+    keys = [a.round(6).tobytes() for a in aims]
+    for key in dict.fromkeys(keys):
+        rows = np.array([k == key for k in keys])
+        first = int(np.argmax(rows))
+        seed = solve_rows(skel, out[first : first + 1], roots, aims, [first], restarts=2)
+        start = out[rows].copy()
+        start[:, gaze_dofs] = seed[0, gaze_dofs]
+        out[rows] = solve_rows(skel, start, roots, aims, np.flatnonzero(rows), restarts=0)
+        keep_branch(skel, out, roots, aims, np.flatnonzero(rows), times)
+    return out
+
+
+def keep_branch(
+    skel: object,
+    out: FloatArray,
+    roots: tuple[FloatArray, FloatArray],
+    aims: FloatArray,
+    rows: FloatArray,
+    times: FloatArray,
+) -> None:
+    """Re-solve, from the row before, each row whose head jumped from it (issue 19).
+
+    With the target near or past the neck's range several heads aim about as well, and rows
+    solved from one seed fell on either (the neck swung 45 deg between two frames while a
+    wrench swung on the access panel); from the row before, the solver stays on its branch."""
+    gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
+    rows = np.asarray(rows, dtype=np.intp)
+    if len(rows) < 2:
+        return
+    # every step's test at once, from the rows as they are (elementwise the same arithmetic);
+    # a step from a re-solved row is tested again in the loop
+    head = out[rows][:, gaze_dofs]
+    allowed_all = HEAD_SPEED * np.maximum(times[rows[1:]] - times[rows[:-1]], 0.0)
+    slow = np.abs(head[1:] - head[:-1]).max(axis=1) <= allowed_all
+    moved = False  # the row before was re-solved
+    for k, (a, b) in enumerate(itertools.pairwise(rows.tolist())):
+        if not moved and slow[k]:
+            continue
+        moved = False
+        allowed = HEAD_SPEED * max(float(times[b] - times[a]), 0.0)
+        if np.abs(out[b, gaze_dofs] - out[a, gaze_dofs]).max() <= allowed:
+            continue
+        moved = True
+        start = out[b : b + 1].copy()
+        start[0, gaze_dofs] = out[a, gaze_dofs]
+        out[b] = solve_rows(skel, start, roots, aims, [b], restarts=0)[0]
+
+
+def solve_rows(
+    skel: object,
+    q_start: FloatArray,
+    roots: tuple[FloatArray, FloatArray],
+    aims: FloatArray,
+    rows: list[int] | np.ndarray,
+    restarts: int,
+) -> FloatArray:
+    """The damped least squares head (neck and head dofs) for some rows, from ``q_start``."""
+    model = prepare(skel, ["gaze"], q_start, root_position=roots[0][rows],
+                    root_rotation=roots[1][rows])  # fmt: skip
+    res = solve_ta(skel, [Goal("gaze", aim=aims[rows])], q_start, model=model,
+                   restarts=restarts, orientation_tol=TRACK_TOLERANCE)  # fmt: skip
+    return res.q
 
 
 def schedule(

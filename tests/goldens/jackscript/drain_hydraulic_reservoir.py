@@ -167,21 +167,22 @@ def drain_reservoir():
     human.LookAt((-12.0, 20.0, 82.0), start=2.338737, duration=0.2628)
     human.KeyRoot(2.4, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'neck': (-0.392, 0.0, 0.0), 'head': (-0.131, 0.0),
-        'right_shoulder': (89.757, -29.27, 11.459), 'left_shoulder': (89.757, -29.27, 11.459),
-        'right_hip': (79.846, 19.182, -6.579), 'right_knee': (97.768,),
-        'right_ankle': (17.368, -3.166), 'left_hip': (79.846, 19.182, -6.579),
-        'left_knee': (97.768,), 'left_ankle': (17.368, -3.166),
+        'neck': (-0.31, 0.0, 0.0), 'head': (-0.31, 0.0), 'right_shoulder': (89.757, -29.27, 11.459),
+        'left_shoulder': (89.757, -29.27, 11.459), 'right_hip': (79.846, 19.182, -6.579),
+        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
+        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
+        'left_ankle': (17.368, -3.166),
     })
-    human.KeyJoints(2.5, {'neck': (-1.9, 0.0, 0.0), 'head': (-0.633, 0.0)})
+    human.KeyJoints(2.5, {'neck': (-1.505, 0.0, 0.0), 'head': (-1.505, 0.0)})
     human.KeyJoints(2.6, {
-        'neck': (-2.846, 0.0, 0.0), 'head': (-0.949, 0.0),
+        'neck': (-2.254, 0.0, 0.0), 'head': (-2.254, 0.0),
         'right_shoulder': (89.757, -29.27, 11.459),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0),
         'right_shoulder': (89.834, -29.001, 11.381), 'right_elbow': (34.36, 17.187),
         'right_wrist': (-0.022, -0.017),
     })
@@ -205,25 +206,25 @@ def drain_reservoir():
     })
     human.KeyJoints(3.2, {
         'spine_lumbar': (59.806, -1.262, 2.366), 'spine_thoracic': (29.138, -1.432, 1.935),
-        'neck': (-2.847, 0.0, 0.0), 'head': (-0.949, 0.0), 'right_clavicle': (0.821, 1.195),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.821, 1.195),
         'right_shoulder': (100.093, -10.326, 5.71), 'right_wrist': (-1.765, -1.289),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
         'spine_lumbar': (59.951, -1.866, 3.54), 'spine_thoracic': (29.3, -2.131, 2.906),
-        'neck': (-1.809, 0.0, -1.03), 'head': (-0.603, 0.0), 'right_clavicle': (1.251, 1.717),
+        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.251, 1.717),
         'right_shoulder': (102.566, -6.815, 4.564), 'right_elbow': (31.452, 17.106),
         'right_wrist': (-2.126, -1.624),
     })
     human.KeyJoints(3.4, {
         'spine_lumbar': (59.999, -2.051, 3.901), 'spine_thoracic': (29.365, -2.346, 3.205),
-        'neck': (-1.548, 0.0, -7.783), 'head': (-0.516, 0.0), 'right_clavicle': (1.384, 1.876),
+        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.384, 1.876),
         'right_shoulder': (103.306, -5.742, 4.214), 'right_wrist': (-2.236, -1.728),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'neck': (-2.034, 0.0, -11.413), 'head': (-0.678, 0.0),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
         'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
@@ -234,18 +235,18 @@ def drain_reservoir():
     human.KeyJoints(3.7, {'right_elbow': (31.213, -26.174)})
     human.KeyJoints(3.8, {'right_elbow': (31.281, -57.713)})
     human.KeyJoints(3.9, {
-        'neck': (-2.034, 0.0, -11.413), 'head': (-0.678, 0.0),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
         'right_shoulder': (103.506, -5.264, 4.072), 'right_elbow': (31.249, -72.873),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=3.903593, duration=0.2628)
     human.KeyJoints(4.0, {
-        'neck': (0.046, 0.0, -7.116), 'head': (0.154, 0.0), 'right_wrist': (-2.234, -1.664),
+        'neck': (0.06, 0.217, -7.109), 'head': (0.061, 0.002), 'right_wrist': (-2.234, -1.664),
     })
-    human.KeyJoints(4.1, {'neck': (3.7, 0.0, 0.432), 'head': (1.617, 0.0)})
+    human.KeyJoints(4.1, {'neck': (2.596, -0.025, 0.399), 'head': (2.596, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.2, {'neck': (4.786, 0.0, 2.742), 'head': (2.051, 0.0)})
-    human.KeyJoints(7.3, {'neck': (4.786, 0.0, 2.675)})
+    human.KeyJoints(4.2, {'neck': (3.349, -0.096, 2.697), 'head': (3.35, -0.001)})
+    human.KeyJoints(7.3, {'neck': (3.349, -0.096, 2.63)})
     human.KeyJoints(8.1, {'right_elbow': (31.249, -72.895)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(8.2, {
@@ -261,7 +262,7 @@ def drain_reservoir():
     human.KeyRoot(8.6, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.6, {
         'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
-        'neck': (4.786, 0.0, 2.675), 'head': (2.051, 0.0), 'right_elbow': (30.878, 17.105),
+        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001), 'right_elbow': (30.878, 17.105),
         'right_hip': (79.846, 19.182, -6.579), 'right_knee': (97.768,),
         'right_ankle': (17.368, -3.166), 'left_hip': (79.846, 19.182, -6.579),
         'left_knee': (97.768,), 'left_ankle': (17.368, -3.166),
@@ -271,7 +272,7 @@ def drain_reservoir():
     human.KeyRoot(8.7, (7.885, 52.269, 20.686), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
         'spine_lumbar': (59.47, -1.983, 3.773), 'spine_thoracic': (29.12, -2.269, 3.099),
-        'neck': (3.759, 0.0, 2.101), 'head': (1.611, 0.0), 'right_wrist': (-2.22, -1.77),
+        'neck': (2.602, -0.075, 2.043), 'head': (2.602, 0.0), 'right_wrist': (-2.22, -1.77),
         'right_hip': (75.195, 18.74, -7.592), 'right_knee': (93.4,),
         'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592), 'left_knee': (93.4,),
         'left_ankle': (17.418, -2.657),
@@ -279,7 +280,7 @@ def drain_reservoir():
     human.KeyRoot(8.8, (7.409, 56.808, 22.156), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
         'spine_lumbar': (51.403, -1.646, 3.13), 'spine_thoracic': (25.194, -1.882, 2.571),
-        'neck': (0.685, 0.0, 0.383), 'head': (0.293, 0.0), 'right_hip': (68.045, 18.002, -9.045),
+        'neck': (0.418, -0.012, 0.328), 'head': (0.418, 0.0), 'right_hip': (68.045, 18.002, -9.045),
         'left_hip': (68.045, 18.002, -9.045),
     })
     human.KeyRoot(8.9, (6.768, 61.129, 24.133), (-17.969, 0.0, 0.0))

@@ -92,32 +92,33 @@ def remove_access_panel_cad():
         'left_ankle': (7.432, 0.422),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.271024)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.270061)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.002, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (0.523, 0.0, -7.146), 'head': (0.224, 0.0)})
+    human.KeyJoints(1.4, {'neck': (0.349, -0.002, -6.87), 'head': (0.352, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (1.328, 0.0, -18.153), 'head': (0.569, 0.0),
+        'neck': (0.899, -0.005, -17.64), 'head': (0.906, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.56576, duration=10.898153)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.564798, duration=10.899115)
     human.KeyJoints(1.6, {
-        'neck': (1.559, 0.0, -21.307), 'right_shoulder': (8.653, 5.731, 11.452),
-        'right_elbow': (34.378, 17.184), 'right_wrist': (-0.001, -0.023),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
+        'right_shoulder': (8.653, 5.731, 11.452), 'right_elbow': (34.378, 17.184),
+        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'head': (0.668, 0.0), 'right_shoulder': (10.491, 5.764, 11.216),
-        'right_elbow': (34.409, 17.028), 'right_wrist': (-0.021, -0.728),
+        'right_shoulder': (10.491, 5.764, 11.216), 'right_elbow': (34.409, 17.028),
+        'right_wrist': (-0.021, -0.728),
     })
     human.KeyJoints(1.8, {
         'right_shoulder': (16.424, 5.872, 10.456), 'right_elbow': (34.507, 16.524),
@@ -143,498 +144,683 @@ def remove_access_panel_cad():
         'right_elbow': (34.914, 12.016), 'right_wrist': (-0.824, -22.912),
     })
     human.KeyJoints(2.3, {
-        'neck': (1.559, 0.0, -21.307), 'head': (0.668, 0.0),
+        'neck': (1.097, -0.004, -21.296), 'head': (1.103, 0.0),
         'right_shoulder': (80.819, 8.917, 1.485), 'right_elbow': (34.438, 10.982),
         'right_wrist': (-1.179, -26.858),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
         'spine_lumbar': (5.297, 0.707, 1.239), 'spine_thoracic': (-1.433, -1.403, 1.227),
-        'neck': (0.258, 0.0, -22.748), 'head': (0.111, 0.0), 'right_clavicle': (2.024, 0.686),
+        'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (2.024, 0.686),
         'right_shoulder': (88.233, 10.136, 0.119), 'right_elbow': (33.922, 10.309),
         'right_wrist': (-1.481, -29.192),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.008, 0.802, 1.404), 'spine_thoracic': (-1.636, -1.595, 1.391),
-        'neck': (-0.724, 0.0, -24.774), 'head': (-0.241, 0.0), 'right_clavicle': (2.301, 0.776),
-        'right_shoulder': (90.754, 10.587, -0.359), 'right_elbow': (33.725, 10.079),
-        'right_wrist': (-1.591, -29.967),
+        'neck': (-0.238, -0.596, -24.912), 'head': (-0.364, -0.001),
+        'right_clavicle': (2.301, 0.776), 'right_shoulder': (90.754, 10.587, -0.359),
+        'right_elbow': (33.725, 10.079), 'right_wrist': (-1.591, -29.967),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
     human.KeyJoints(2.6, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-1.343, 0.0, -25.932), 'head': (-0.448, 0.0), 'right_clavicle': (2.313, 0.78),
+        'neck': (-0.57, -0.745, -26.12), 'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.923, 10.607, -0.381), 'right_elbow': (33.613, 10.07),
         'right_wrist': (-1.588, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.794, 0.97, 1.355), 'spine_thoracic': (-2.244, -2.214, 1.404),
-        'neck': (-1.335, 0.0, -26.236), 'right_clavicle': (10.217, 0.324),
-        'right_shoulder': (85.803, 16.166, 1.682), 'right_elbow': (34.773, 13.168),
-        'right_wrist': (-1.431, -23.896),
+        'spine_lumbar': (6.432, 0.775, 1.773), 'spine_thoracic': (-3.938, -2.778, 1.708),
+        'neck': (0.455, -0.368, -26.985), 'head': (0.366, 0.0), 'right_clavicle': (3.99, 0.497),
+        'right_shoulder': (87.263, 12.415, -0.447), 'right_elbow': (33.674, 10.363),
+        'right_wrist': (-1.981, -28.135),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (8.599, 1.375, 1.206), 'spine_thoracic': (-3.743, -3.702, 1.404),
-        'neck': (-1.266, 0.0, -26.933), 'right_clavicle': (27.454, 5.362),
-        'right_shoulder': (74.54, 35.685, 6.313), 'right_elbow': (33.116, 21.17),
-        'right_wrist': (-1.245, -1.792),
+        'spine_lumbar': (12.712, 1.978, 0.875), 'spine_thoracic': (-8.378, -8.772, 1.226),
+        'neck': (0.51, -0.393, -29.38), 'head': (0.406, 0.0), 'right_clavicle': (14.645, -2.18),
+        'right_shoulder': (78.396, 22.373, 5.429), 'right_elbow': (38.088, 17.696),
+        'right_wrist': (-0.961, -13.602),
     })
     human.KeyJoints(2.9, {
-        'right_clavicle': (26.365, -1.687), 'right_shoulder': (72.383, 26.647, 5.281),
-        'right_elbow': (39.902, 18.475), 'right_wrist': (-2.351, -8.53),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(3.0, {
-        'right_clavicle': (15.621, -7.841), 'right_shoulder': (78.077, 5.574, -3.0),
-        'right_elbow': (44.936, 6.355), 'right_wrist': (-5.493, -28.969),
+        'spine_lumbar': (7.167, -0.862, 2.456), 'spine_thoracic': (-11.114, -6.26, 2.25),
+        'neck': (4.061, 0.965, -29.55), 'head': (4.225, 0.004), 'right_clavicle': (12.921, -2.248),
+        'right_shoulder': (70.065, 19.837, 2.176), 'right_elbow': (36.142, 14.203),
+        'right_wrist': (-2.125, -15.166),
     })
     human.KeyJoints(3.1, {
-        'right_clavicle': (7.085, -2.874), 'right_shoulder': (86.178, 7.176, -3.37),
-        'right_elbow': (38.182, 6.691), 'right_wrist': (-3.991, -29.842),
+        'spine_lumbar': (5.669, 0.088, 3.866), 'spine_thoracic': (-8.27, -2.305, 3.256),
+        'neck': (2.598, 0.405, -29.464), 'head': (2.653, 0.001), 'right_clavicle': (5.308, 0.004),
+        'right_shoulder': (81.094, 14.033, -3.603), 'right_elbow': (32.697, 7.943),
+        'right_wrist': (-3.159, -26.792),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'right_clavicle': (2.339, -2.277), 'right_shoulder': (89.664, 8.116, -0.233),
-        'right_elbow': (35.733, 9.628), 'right_wrist': (-1.866, -29.426),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.995, -1.614, 1.56),
+        'neck': (-0.569, -0.746, -26.225), 'head': (-0.73, -0.002),
+        'right_clavicle': (2.424, 0.872), 'right_shoulder': (90.602, 10.835, -0.424),
+        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.676, -29.315),
     })
     human.KeyJoints(3.3, {
-        'right_clavicle': (20.815, 2.393), 'right_shoulder': (78.978, 28.415, 5.757),
-        'right_elbow': (34.329, 19.325), 'right_wrist': (-0.82, -9.414),
+        'spine_lumbar': (9.512, 1.116, 1.417), 'spine_thoracic': (-6.826, -6.197, 1.482),
+        'neck': (0.931, -0.214, -28.448), 'head': (0.867, 0.0), 'right_clavicle': (9.303, -0.849),
+        'right_shoulder': (81.56, 17.499, 2.296), 'right_elbow': (35.792, 13.861),
+        'right_wrist': (-1.46, -20.665),
     })
     human.KeyJoints(3.4, {
-        'right_clavicle': (28.382, 4.912), 'right_shoulder': (73.332, 35.395, 5.969),
-        'right_elbow': (33.897, 20.836), 'right_wrist': (-1.537, -1.728),
+        'spine_lumbar': (15.829, 3.05, 0.438), 'spine_thoracic': (-9.555, -10.0, 1.185),
+        'neck': (-0.456, -0.778, -30.127), 'head': (-0.64, -0.004),
+        'right_clavicle': (20.326, -3.435), 'right_shoulder': (76.68, 27.353, 8.322),
+        'right_elbow': (40.381, 21.471), 'right_wrist': (-0.764, -6.82),
     })
     human.KeyJoints(3.5, {
-        'right_clavicle': (20.707, -8.104), 'right_shoulder': (73.984, 12.325, 1.533),
-        'right_elbow': (45.356, 11.906), 'right_wrist': (-3.969, -21.845),
+        'spine_lumbar': (13.221, 1.844, 0.941), 'spine_thoracic': (-10.495, -9.452, 1.516),
+        'neck': (1.308, -0.094, -29.661), 'head': (1.264, 0.0), 'right_clavicle': (19.52, -3.421),
+        'right_shoulder': (72.434, 26.095, 7.454), 'right_elbow': (39.92, 20.347),
+        'right_wrist': (-1.125, -6.845),
     })
     human.KeyJoints(3.6, {
-        'right_clavicle': (11.054, -4.45), 'right_shoulder': (82.861, 5.83, -4.769),
-        'right_elbow': (40.91, 5.075), 'right_wrist': (-5.387, -30.0),
+        'spine_lumbar': (4.651, -0.828, 4.47), 'spine_thoracic': (-11.049, -2.916, 3.639),
+        'neck': (4.408, 1.079, -30.453), 'head': (4.592, 0.005), 'right_clavicle': (7.054, -0.678),
+        'right_shoulder': (74.92, 15.414, -4.093), 'right_elbow': (32.439, 7.774),
+        'right_wrist': (-3.592, -24.535),
     })
     human.KeyJoints(3.7, {
-        'right_clavicle': (1.124, -2.214), 'right_shoulder': (90.428, 7.52, -0.358),
-        'right_elbow': (35.477, 9.409), 'right_wrist': (-1.739, -29.992),
+        'spine_lumbar': (6.274, 0.998, 1.668), 'spine_thoracic': (-2.219, -1.635, 1.624),
+        'neck': (-0.459, -0.706, -26.346), 'head': (-0.612, -0.002),
+        'right_clavicle': (2.528, 0.841), 'right_shoulder': (90.283, 10.955, -0.546),
+        'right_elbow': (33.952, 9.975), 'right_wrist': (-1.729, -29.232),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'right_clavicle': (11.848, -1.157), 'right_shoulder': (84.076, 17.015, 2.832),
-        'right_elbow': (35.824, 14.364), 'right_wrist': (-1.195, -20.952),
+        'spine_lumbar': (7.07, 0.952, 1.941), 'spine_thoracic': (-5.104, -3.537, 1.867),
+        'neck': (0.778, -0.253, -27.457), 'head': (0.71, 0.0), 'right_clavicle': (5.168, 0.327),
+        'right_shoulder': (85.392, 13.681, -0.344), 'right_elbow': (34.113, 10.8),
+        'right_wrist': (-2.069, -26.206),
     })
     human.KeyJoints(3.9, {
-        'right_clavicle': (27.825, 5.486), 'right_shoulder': (74.201, 35.935, 6.222),
-        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.307, -1.516),
+        'spine_lumbar': (13.788, 2.386, 0.7), 'spine_thoracic': (-8.777, -9.372, 1.175),
+        'neck': (0.225, -0.506, -29.551), 'right_clavicle': (16.432, -2.58),
+        'right_shoulder': (77.779, 23.979, 6.438), 'right_elbow': (38.929, 18.958),
+        'right_wrist': (-0.865, -11.305),
     })
     human.KeyJoints(4.0, {
-        'right_clavicle': (25.614, -3.017), 'right_shoulder': (72.411, 24.397, 4.917),
-        'right_elbow': (41.058, 17.665), 'right_wrist': (-2.553, -10.498),
+        'spine_lumbar': (16.216, 3.04, 0.664), 'spine_thoracic': (-10.135, -10.0, 1.491),
+        'neck': (-0.381, -0.759, -30.621), 'head': (-0.564, -0.004),
+        'right_clavicle': (21.604, -3.685), 'right_shoulder': (75.462, 28.438, 8.513),
+        'right_elbow': (40.571, 21.944), 'right_wrist': (-0.853, -5.458),
     })
     human.KeyJoints(4.1, {
-        'right_clavicle': (14.663, -7.239), 'right_shoulder': (79.085, 5.266, -3.785),
-        'right_elbow': (44.272, 5.6), 'right_wrist': (-5.64, -29.553),
+        'spine_lumbar': (5.688, -1.319, 3.149), 'spine_thoracic': (-11.389, -5.129, 2.68),
+        'neck': (4.64, 1.181, -29.856), 'head': (4.845, 0.005), 'right_clavicle': (10.863, -1.814),
+        'right_shoulder': (70.515, 18.111, -0.016), 'right_elbow': (34.697, 11.904),
+        'right_wrist': (-2.627, -18.357),
     })
     human.KeyJoints(4.2, {
-        'right_clavicle': (5.608, -2.632), 'right_shoulder': (87.277, 7.326, -2.676),
-        'right_elbow': (37.427, 7.359), 'right_wrist': (-3.439, -29.859),
+        'spine_lumbar': (5.929, 0.339, 3.358), 'spine_thoracic': (-6.892, -2.183, 2.883),
+        'neck': (1.86, 0.136, -28.769), 'head': (1.865, 0.001), 'right_clavicle': (4.727, 0.192),
+        'right_shoulder': (83.346, 13.428, -2.88), 'right_elbow': (33.008, 8.445),
+        'right_wrist': (-2.821, -27.351),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'right_clavicle': (4.445, -2.335), 'right_shoulder': (88.346, 9.222, -0.148),
-        'right_elbow': (36.12, 10.003), 'right_wrist': (-2.058, -28.377),
+        'spine_lumbar': (6.318, 1.023, 1.628), 'spine_thoracic': (-2.26, -1.742, 1.599),
+        'neck': (-0.446, -0.701, -26.327), 'head': (-0.598, -0.002),
+        'right_clavicle': (2.607, 0.844), 'right_shoulder': (90.184, 11.034, -0.437),
+        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.726, -29.12),
     })
     human.KeyJoints(4.4, {
-        'right_clavicle': (23.153, 3.581), 'right_shoulder': (77.648, 31.538, 6.391),
-        'right_elbow': (33.719, 20.512), 'right_wrist': (-0.843, -6.193),
+        'spine_lumbar': (10.576, 1.345, 1.241), 'spine_thoracic': (-7.424, -7.164, 1.384),
+        'neck': (0.864, -0.247, -28.817), 'head': (0.792, 0.0), 'right_clavicle': (11.053, -1.302),
+        'right_shoulder': (80.284, 19.118, 3.338), 'right_elbow': (36.553, 15.125),
+        'right_wrist': (-1.265, -18.28),
     })
     human.KeyJoints(4.5, {
-        'right_clavicle': (28.379, 3.672), 'right_shoulder': (72.919, 34.087, 5.965),
-        'right_elbow': (35.081, 20.598), 'right_wrist': (-1.7, -2.564),
+        'spine_lumbar': (16.117, 3.078, 0.522), 'spine_thoracic': (-9.843, -10.0, 1.323),
+        'neck': (-0.473, -0.789, -30.362), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.075, -3.582), 'right_shoulder': (76.127, 28.002, 8.496),
+        'right_elbow': (40.532, 21.8), 'right_wrist': (-0.798, -6.031),
     })
     human.KeyJoints(4.6, {
-        'right_clavicle': (19.053, -8.638), 'right_shoulder': (75.065, 9.285, 0.067),
-        'right_elbow': (45.777, 9.894), 'right_wrist': (-4.512, -24.882),
+        'spine_lumbar': (11.186, 0.897, 1.295), 'spine_thoracic': (-10.649, -8.564, 1.643),
+        'neck': (2.281, 0.284, -29.411), 'head': (2.314, 0.001), 'right_clavicle': (17.516, -3.084),
+        'right_shoulder': (71.211, 24.092, 6.135), 'right_elbow': (38.967, 18.677),
+        'right_wrist': (-1.351, -9.019),
     })
     human.KeyJoints(4.7, {
-        'right_clavicle': (9.853, -3.804), 'right_shoulder': (83.949, 6.323, -4.637),
-        'right_elbow': (39.956, 5.313), 'right_wrist': (-5.058, -29.971),
+        'spine_lumbar': (4.911, -0.491, 4.418), 'spine_thoracic': (-10.386, -2.615, 3.616),
+        'neck': (3.921, 0.897, -30.212), 'head': (4.07, 0.003), 'right_clavicle': (6.387, -0.404),
+        'right_shoulder': (76.913, 14.957, -4.117), 'right_elbow': (32.436, 7.647),
+        'right_wrist': (-3.551, -25.513),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
-        'right_clavicle': (0.914, -2.202), 'right_shoulder': (90.574, 7.52, -0.248),
-        'right_elbow': (35.391, 9.506), 'right_wrist': (-1.659, -30.0),
+        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
+        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
+        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
+        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(4.9, {
-        'right_clavicle': (14.92, -0.107), 'right_shoulder': (82.321, 20.804, 3.913),
-        'right_elbow': (35.436, 16.13), 'right_wrist': (-0.978, -17.172),
+        'spine_lumbar': (7.717, 0.935, 1.781), 'spine_thoracic': (-5.639, -4.306, 1.74),
+        'neck': (0.875, -0.221, -27.738), 'head': (0.812, 0.0), 'right_clavicle': (6.291, -0.008),
+        'right_shoulder': (84.214, 14.713, 0.438), 'right_elbow': (34.559, 11.654),
+        'right_wrist': (-1.888, -24.745),
     })
     human.KeyJoints(5.0, {
-        'right_clavicle': (28.012, 5.547), 'right_shoulder': (74.038, 36.057, 6.173),
-        'right_elbow': (33.134, 21.17), 'right_wrist': (-1.337, -1.378),
+        'spine_lumbar': (14.654, 2.715, 0.535), 'spine_thoracic': (-9.042, -9.761, 1.128),
+        'neck': (-0.053, -0.614, -29.645), 'head': (-0.203, -0.001),
+        'right_clavicle': (17.956, -2.925), 'right_shoulder': (77.423, 25.312, 7.284),
+        'right_elbow': (39.577, 20.026), 'right_wrist': (-0.794, -9.473),
     })
     human.KeyJoints(5.1, {
-        'right_clavicle': (24.06, -5.246), 'right_shoulder': (72.672, 20.136, 4.014),
-        'right_elbow': (42.968, 15.923), 'right_wrist': (-2.968, -14.376),
+        'spine_lumbar': (15.837, 2.895, 0.704), 'spine_thoracic': (-10.26, -10.0, 1.502),
+        'neck': (-0.115, -0.655, -30.519), 'head': (-0.275, -0.003),
+        'right_clavicle': (21.509, -3.689), 'right_shoulder': (74.779, 28.284, 8.44),
+        'right_elbow': (40.55, 21.824), 'right_wrist': (-0.905, -5.377),
     })
     human.KeyJoints(5.2, {
-        'right_clavicle': (13.42, -6.259), 'right_shoulder': (80.438, 5.057, -4.516),
-        'right_elbow': (43.144, 4.981), 'right_wrist': (-5.751, -29.991),
+        'spine_lumbar': (4.837, -1.32, 3.766), 'spine_thoracic': (-11.473, -4.185, 3.096),
+        'neck': (4.835, 1.25, -30.124), 'head': (5.052, 0.006), 'right_clavicle': (9.236, -1.403),
+        'right_shoulder': (71.505, 16.875, -1.873), 'right_elbow': (33.582, 10.013),
+        'right_wrist': (-3.083, -20.999),
     })
     human.KeyJoints(5.3, {
-        'right_clavicle': (3.875, -2.428), 'right_shoulder': (88.514, 7.444, -1.798),
-        'right_elbow': (36.638, 8.15), 'right_wrist': (-2.784, -29.899),
+        'spine_lumbar': (6.098, 0.595, 2.766), 'spine_thoracic': (-5.235, -1.997, 2.445),
+        'neck': (1.025, -0.167, -27.929), 'head': (0.972, 0.0), 'right_clavicle': (3.96, 0.425),
+        'right_shoulder': (85.897, 12.59, -2.068), 'right_elbow': (33.344, 8.983),
+        'right_wrist': (-2.434, -28.035),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'right_clavicle': (6.502, -2.216), 'right_shoulder': (87.142, 11.061, 0.558),
-        'right_elbow': (36.135, 11.057), 'right_wrist': (-1.859, -26.679),
+        'spine_lumbar': (6.425, 1.007, 1.756), 'spine_thoracic': (-3.037, -2.125, 1.708),
+        'neck': (-0.089, -0.569, -26.619), 'head': (-0.216, -0.001),
+        'right_clavicle': (3.15, 0.754), 'right_shoulder': (88.955, 11.624, -0.465),
+        'right_elbow': (34.003, 10.147), 'right_wrist': (-1.867, -28.536),
     })
     human.KeyJoints(5.5, {
-        'right_clavicle': (25.08, 4.507), 'right_shoulder': (76.462, 33.84, 6.699),
-        'right_elbow': (33.295, 21.156), 'right_wrist': (-0.921, -3.806),
+        'spine_lumbar': (11.683, 1.662, 1.076), 'spine_thoracic': (-7.98, -8.043, 1.314),
+        'neck': (0.72, -0.309, -29.142), 'head': (0.634, 0.0), 'right_clavicle': (12.874, -1.748),
+        'right_shoulder': (79.197, 20.796, 4.384), 'right_elbow': (37.356, 16.415),
+        'right_wrist': (-1.107, -15.844),
     })
     human.KeyJoints(5.6, {
-        'right_clavicle': (27.849, 1.727), 'right_shoulder': (72.571, 31.667, 5.854),
-        'right_elbow': (36.866, 20.024), 'right_wrist': (-1.921, -4.375),
+        'spine_lumbar': (16.252, 3.083, 0.577), 'spine_thoracic': (-9.998, -10.0, 1.401),
+        'neck': (-0.47, -0.79, -30.498), 'head': (-0.658, -0.004),
+        'right_clavicle': (21.45, -3.653), 'right_shoulder': (75.824, 28.326, 8.563),
+        'right_elbow': (40.595, 21.95), 'right_wrist': (-0.82, -5.643),
     })
     human.KeyJoints(5.7, {
-        'right_clavicle': (17.489, -8.566), 'right_shoulder': (76.304, 7.171, -1.362),
-        'right_elbow': (45.69, 8.136), 'right_wrist': (-5.008, -27.104),
+        'spine_lumbar': (9.066, -0.078, 1.817), 'spine_thoracic': (-10.857, -7.442, 1.893),
+        'neck': (3.245, 0.655, -29.376), 'head': (3.35, 0.002), 'right_clavicle': (15.206, -2.677),
+        'right_shoulder': (70.383, 21.896, 4.307), 'right_elbow': (37.64, 16.542),
+        'right_wrist': (-1.687, -11.926),
     })
     human.KeyJoints(5.8, {
-        'right_clavicle': (8.639, -3.288), 'right_shoulder': (84.952, 6.832, -4.097),
-        'right_elbow': (39.119, 5.919), 'right_wrist': (-4.591, -29.884),
+        'spine_lumbar': (5.325, -0.173, 4.24), 'spine_thoracic': (-9.421, -2.421, 3.52),
+        'neck': (3.272, 0.653, -29.961), 'head': (3.375, 0.002), 'right_clavicle': (5.826, -0.175),
+        'right_shoulder': (79.015, 14.526, -4.075), 'right_elbow': (32.481, 7.62),
+        'right_wrist': (-3.416, -26.241),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
-        'right_clavicle': (1.155, -2.217), 'right_shoulder': (90.42, 7.616, -0.247),
-        'right_elbow': (35.448, 9.52), 'right_wrist': (-1.696, -29.907),
+        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
+        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
+        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
+        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(6.0, {
-        'right_clavicle': (17.988, 1.066), 'right_shoulder': (80.576, 24.665, 4.922),
-        'right_elbow': (34.953, 17.832), 'right_wrist': (-0.854, -13.262),
+        'spine_lumbar': (8.532, 0.98, 1.603), 'spine_thoracic': (-6.216, -5.21, 1.606),
+        'neck': (0.932, -0.206, -28.076), 'head': (0.871, 0.0), 'right_clavicle': (7.68, -0.405),
+        'right_shoulder': (82.913, 15.996, 1.301), 'right_elbow': (35.107, 12.674),
+        'right_wrist': (-1.679, -22.88),
     })
     human.KeyJoints(6.1, {
-        'right_clavicle': (28.271, 5.429), 'right_shoulder': (73.736, 35.924, 5.994),
-        'right_elbow': (33.314, 21.011), 'right_wrist': (-1.415, -1.438),
+        'spine_lumbar': (15.344, 2.971, 0.402), 'spine_thoracic': (-9.249, -9.993, 1.107),
+        'neck': (-0.294, -0.707, -29.708), 'head': (-0.465, -0.002),
+        'right_clavicle': (19.226, -3.209), 'right_shoulder': (77.182, 26.403, 7.965),
+        'right_elbow': (40.088, 20.895), 'right_wrist': (-0.748, -8.018),
     })
     human.KeyJoints(6.2, {
-        'right_clavicle': (22.415, -7.023), 'right_shoulder': (73.179, 16.021, 2.88),
-        'right_elbow': (44.468, 13.973), 'right_wrist': (-3.443, -18.25),
+        'spine_lumbar': (14.865, 2.541, 0.765), 'spine_thoracic': (-10.372, -9.908, 1.494),
+        'neck': (0.468, -0.422, -30.026), 'head': (0.356, -0.001),
+        'right_clavicle': (20.923, -3.633), 'right_shoulder': (73.732, 27.576, 8.193),
+        'right_elbow': (40.421, 21.401), 'right_wrist': (-0.985, -5.65),
     })
     human.KeyJoints(6.3, {
-        'right_clavicle': (12.233, -5.33), 'right_shoulder': (81.678, 5.284, -4.689),
-        'right_elbow': (42.036, 4.992), 'right_wrist': (-5.655, -30.0),
+        'spine_lumbar': (4.582, -1.184, 4.207), 'spine_thoracic': (-11.458, -3.452, 3.423),
+        'neck': (4.764, 1.217, -30.385), 'head': (4.974, 0.006), 'right_clavicle': (7.99, -1.023),
+        'right_shoulder': (73.031, 16.012, -3.223), 'right_elbow': (32.855, 8.653),
+        'right_wrist': (-3.406, -23.038),
     })
     human.KeyJoints(6.4, {
-        'right_clavicle': (2.293, -2.291), 'right_shoulder': (89.618, 7.504, -0.973),
-        'right_elbow': (35.963, 8.874), 'right_wrist': (-2.183, -29.948),
+        'spine_lumbar': (6.211, 0.827, 2.149), 'spine_thoracic': (-3.536, -1.795, 1.984),
+        'neck': (0.187, -0.472, -27.044), 'head': (0.077, -0.001), 'right_clavicle': (3.156, 0.66),
+        'right_shoulder': (88.385, 11.675, -1.213), 'right_elbow': (33.687, 9.541),
+        'right_wrist': (-2.037, -28.712),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'right_clavicle': (8.943, -1.848), 'right_shoulder': (85.739, 13.671, 1.646),
-        'right_elbow': (36.047, 12.588), 'right_wrist': (-1.52, -24.209),
+        'spine_lumbar': (6.653, 0.982, 1.927), 'spine_thoracic': (-4.242, -2.775, 1.854),
+        'neck': (0.446, -0.373, -27.064), 'head': (0.355, 0.0), 'right_clavicle': (4.074, 0.586),
+        'right_shoulder': (87.012, 12.606, -0.486), 'right_elbow': (34.013, 10.347),
+        'right_wrist': (-2.055, -27.514),
     })
     human.KeyJoints(6.6, {
-        'right_clavicle': (26.865, 5.165), 'right_shoulder': (75.029, 35.276, 6.445),
-        'right_elbow': (33.166, 21.169), 'right_wrist': (-1.153, -2.247),
+        'spine_lumbar': (12.756, 2.011, 0.898), 'spine_thoracic': (-8.431, -8.779, 1.247),
+        'neck': (0.506, -0.395, -29.39), 'head': (0.402, -0.001),
+        'right_clavicle': (14.672, -2.174), 'right_shoulder': (78.357, 22.421, 5.418),
+        'right_elbow': (38.15, 17.695), 'right_wrist': (-0.976, -13.513),
     })
     human.KeyJoints(6.7, {
-        'right_clavicle': (26.928, -0.579), 'right_shoulder': (72.417, 28.388, 5.528),
-        'right_elbow': (38.929, 19.058), 'right_wrist': (-2.202, -7.042),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(6.8, {
-        'right_clavicle': (16.019, -8.015), 'right_shoulder': (77.686, 5.75, -2.689),
-        'right_elbow': (45.121, 6.664), 'right_wrist': (-5.423, -28.696),
+        'spine_lumbar': (7.163, -0.864, 2.458), 'spine_thoracic': (-11.115, -6.257, 2.251),
+        'neck': (4.063, 0.965, -29.551), 'head': (4.226, 0.004), 'right_clavicle': (12.916, -2.247),
+        'right_shoulder': (70.065, 19.832, 2.171), 'right_elbow': (36.138, 14.198),
+        'right_wrist': (-2.127, -15.174),
     })
     human.KeyJoints(6.9, {
-        'right_clavicle': (7.267, -2.911), 'right_shoulder': (86.037, 7.153, -3.449),
-        'right_elbow': (38.285, 6.609), 'right_wrist': (-4.058, -29.841),
+        'spine_lumbar': (5.666, 0.085, 3.87), 'spine_thoracic': (-8.281, -2.306, 3.259),
+        'neck': (2.604, 0.407, -29.47), 'head': (2.66, 0.001), 'right_clavicle': (5.313, 0.003),
+        'right_shoulder': (81.075, 14.038, -3.609), 'right_elbow': (32.694, 7.939),
+        'right_wrist': (-3.162, -26.787),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'right_clavicle': (2.31, -2.275), 'right_shoulder': (89.683, 8.103, -0.234),
-        'right_elbow': (35.726, 9.625), 'right_wrist': (-1.862, -29.439),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.994, -1.613, 1.56),
+        'neck': (-0.57, -0.747, -26.224), 'head': (-0.73, -0.002), 'right_clavicle': (2.424, 0.873),
+        'right_shoulder': (90.604, 10.834, -0.424), 'right_elbow': (34.0, 10.055),
+        'right_wrist': (-1.676, -29.316),
     })
     human.KeyJoints(7.1, {
-        'right_clavicle': (20.771, 2.372), 'right_shoulder': (79.003, 28.357, 5.745),
-        'right_elbow': (34.339, 19.302), 'right_wrist': (-0.82, -9.474),
+        'spine_lumbar': (9.494, 1.113, 1.42), 'spine_thoracic': (-6.816, -6.18, 1.484),
+        'neck': (0.931, -0.214, -28.442), 'head': (0.868, 0.0), 'right_clavicle': (9.274, -0.841),
+        'right_shoulder': (81.582, 17.473, 2.279), 'right_elbow': (35.78, 13.841),
+        'right_wrist': (-1.464, -20.704),
     })
     human.KeyJoints(7.2, {
-        'right_clavicle': (28.381, 4.929), 'right_shoulder': (73.339, 35.411, 5.968),
-        'right_elbow': (33.88, 20.839), 'right_wrist': (-1.535, -1.718),
+        'spine_lumbar': (15.823, 3.049, 0.437), 'spine_thoracic': (-9.549, -10.0, 1.182),
+        'neck': (-0.456, -0.778, -30.123), 'head': (-0.639, -0.004),
+        'right_clavicle': (20.31, -3.432), 'right_shoulder': (76.691, 27.339, 8.318),
+        'right_elbow': (40.377, 21.464), 'right_wrist': (-0.763, -6.837),
     })
     human.KeyJoints(7.3, {
-        'right_clavicle': (20.735, -8.092), 'right_shoulder': (73.968, 12.381, 1.557),
-        'right_elbow': (45.347, 11.941), 'right_wrist': (-3.96, -21.789),
+        'spine_lumbar': (13.254, 1.859, 0.936), 'spine_thoracic': (-10.492, -9.465, 1.515),
+        'neck': (1.292, -0.1, -29.667), 'head': (1.247, 0.0), 'right_clavicle': (19.55, -3.426),
+        'right_shoulder': (72.456, 26.126, 7.472), 'right_elbow': (39.933, 20.371),
+        'right_wrist': (-1.122, -6.814),
     })
     human.KeyJoints(7.4, {
-        'right_clavicle': (11.074, -4.463), 'right_shoulder': (82.842, 5.821, -4.769),
-        'right_elbow': (40.928, 5.073), 'right_wrist': (-5.392, -30.0),
+        'spine_lumbar': (4.649, -0.834, 4.468), 'spine_thoracic': (-11.058, -2.923, 3.637),
+        'neck': (4.415, 1.081, -30.455), 'head': (4.599, 0.005), 'right_clavicle': (7.068, -0.684),
+        'right_shoulder': (74.887, 15.422, -4.087), 'right_elbow': (32.441, 7.781),
+        'right_wrist': (-3.59, -24.514),
     })
     human.KeyJoints(7.5, {
-        'right_clavicle': (1.137, -2.215), 'right_shoulder': (90.419, 7.52, -0.365),
-        'right_elbow': (35.483, 9.403), 'right_wrist': (-1.744, -29.991),
+        'spine_lumbar': (6.274, 0.996, 1.674), 'spine_thoracic': (-2.234, -1.637, 1.628),
+        'neck': (-0.451, -0.704, -26.354), 'head': (-0.604, -0.002),
+        'right_clavicle': (2.535, 0.839), 'right_shoulder': (90.261, 10.963, -0.553),
+        'right_elbow': (33.949, 9.97), 'right_wrist': (-1.732, -29.226),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'right_clavicle': (11.798, -1.171), 'right_shoulder': (84.105, 16.955, 2.812),
-        'right_elbow': (35.829, 14.334), 'right_wrist': (-1.2, -21.012),
+        'spine_lumbar': (7.061, 0.953, 1.942), 'spine_thoracic': (-5.094, -3.525, 1.868),
+        'neck': (0.776, -0.254, -27.452), 'head': (0.707, 0.0), 'right_clavicle': (5.15, 0.332),
+        'right_shoulder': (85.412, 13.665, -0.354), 'right_elbow': (34.108, 10.788),
+        'right_wrist': (-2.072, -26.228),
     })
     human.KeyJoints(7.7, {
-        'right_clavicle': (27.816, 5.483), 'right_shoulder': (74.208, 35.929, 6.224),
-        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.305, -1.522),
+        'spine_lumbar': (13.772, 2.38, 0.703), 'spine_thoracic': (-8.772, -9.364, 1.176),
+        'neck': (0.23, -0.504, -29.549), 'right_clavicle': (16.404, -2.573),
+        'right_shoulder': (77.786, 23.955, 6.422), 'right_elbow': (38.917, 18.939),
+        'right_wrist': (-0.867, -11.339),
     })
     human.KeyJoints(7.8, {
-        'right_clavicle': (25.638, -2.976), 'right_shoulder': (72.408, 24.467, 4.929),
-        'right_elbow': (41.024, 17.691), 'right_wrist': (-2.547, -10.436),
+        'spine_lumbar': (16.219, 3.041, 0.663), 'spine_thoracic': (-10.132, -10.0, 1.49),
+        'neck': (-0.384, -0.76, -30.62), 'head': (-0.566, -0.004),
+        'right_clavicle': (21.604, -3.684), 'right_shoulder': (75.47, 28.438, 8.515),
+        'right_elbow': (40.572, 21.945), 'right_wrist': (-0.852, -5.459),
     })
     human.KeyJoints(7.9, {
-        'right_clavicle': (14.684, -7.255), 'right_shoulder': (79.062, 5.272, -3.768),
-        'right_elbow': (44.29, 5.616), 'right_wrist': (-5.637, -29.541),
+        'spine_lumbar': (5.708, -1.315, 3.138), 'spine_thoracic': (-11.385, -5.146, 2.673),
+        'neck': (4.634, 1.179, -29.85), 'head': (4.838, 0.005), 'right_clavicle': (10.894, -1.821),
+        'right_shoulder': (70.503, 18.136, 0.018), 'right_elbow': (34.718, 11.939),
+        'right_wrist': (-2.619, -18.307),
     })
     human.KeyJoints(8.0, {
-        'right_clavicle': (5.637, -2.636), 'right_shoulder': (87.256, 7.324, -2.69),
-        'right_elbow': (37.441, 7.346), 'right_wrist': (-3.45, -29.858),
+        'spine_lumbar': (5.926, 0.334, 3.367), 'spine_thoracic': (-6.917, -2.185, 2.889),
+        'neck': (1.873, 0.141, -28.781), 'head': (1.879, 0.001), 'right_clavicle': (4.738, 0.188),
+        'right_shoulder': (83.306, 13.44, -2.892), 'right_elbow': (33.003, 8.437),
+        'right_wrist': (-2.826, -27.34),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'right_clavicle': (4.407, -2.335), 'right_shoulder': (88.369, 9.198, -0.15),
-        'right_elbow': (36.117, 9.993), 'right_wrist': (-2.057, -28.4),
+        'spine_lumbar': (6.317, 1.023, 1.627), 'spine_thoracic': (-2.251, -1.738, 1.597),
+        'neck': (-0.45, -0.702, -26.324), 'head': (-0.602, -0.002),
+        'right_clavicle': (2.601, 0.844), 'right_shoulder': (90.197, 11.028, -0.436),
+        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.724, -29.126),
     })
     human.KeyJoints(8.2, {
-        'right_clavicle': (23.119, 3.563), 'right_shoulder': (77.667, 31.492, 6.381),
-        'right_elbow': (33.729, 20.491), 'right_wrist': (-0.842, -6.24),
+        'spine_lumbar': (10.557, 1.34, 1.244), 'spine_thoracic': (-7.414, -7.148, 1.386),
+        'neck': (0.866, -0.246, -28.811), 'head': (0.794, 0.0), 'right_clavicle': (11.023, -1.294),
+        'right_shoulder': (80.304, 19.09, 3.321), 'right_elbow': (36.54, 15.103),
+        'right_wrist': (-1.268, -18.321),
     })
     human.KeyJoints(8.3, {
-        'right_clavicle': (28.383, 3.699), 'right_shoulder': (72.926, 34.117, 5.966),
-        'right_elbow': (35.057, 20.605), 'right_wrist': (-1.697, -2.542),
+        'spine_lumbar': (16.114, 3.078, 0.521), 'spine_thoracic': (-9.839, -10.0, 1.321),
+        'neck': (-0.473, -0.789, -30.359), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.066, -3.58), 'right_shoulder': (76.134, 27.993, 8.494),
+        'right_elbow': (40.53, 21.796), 'right_wrist': (-0.797, -6.041),
     })
     human.KeyJoints(8.4, {
-        'right_clavicle': (19.081, -8.633), 'right_shoulder': (75.045, 9.329, 0.092),
-        'right_elbow': (45.773, 9.926), 'right_wrist': (-4.504, -24.837),
+        'spine_lumbar': (11.222, 0.914, 1.287), 'spine_thoracic': (-10.646, -8.582, 1.64),
+        'neck': (2.264, 0.277, -29.413), 'head': (2.295, 0.001), 'right_clavicle': (17.554, -3.09),
+        'right_shoulder': (71.23, 24.129, 6.163), 'right_elbow': (38.987, 18.71),
+        'right_wrist': (-1.346, -8.974),
     })
     human.KeyJoints(8.5, {
-        'right_clavicle': (9.873, -3.813), 'right_shoulder': (83.932, 6.314, -4.644),
-        'right_elbow': (39.971, 5.305), 'right_wrist': (-5.065, -29.972),
+        'spine_lumbar': (4.904, -0.497, 4.421), 'spine_thoracic': (-10.4, -2.619, 3.617),
+        'neck': (3.931, 0.901, -30.216), 'head': (4.081, 0.003), 'right_clavicle': (6.396, -0.408),
+        'right_shoulder': (76.878, 14.964, -4.117), 'right_elbow': (32.435, 7.648),
+        'right_wrist': (-3.552, -25.5),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
-        'right_clavicle': (0.914, -2.202), 'right_shoulder': (90.574, 7.52, -0.248),
-        'right_elbow': (35.391, 9.506), 'right_wrist': (-1.659, -30.0),
+        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
+        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
+        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
+        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(8.7, {
-        'right_clavicle': (14.868, -0.126), 'right_shoulder': (82.351, 20.739, 3.895),
-        'right_elbow': (35.443, 16.1), 'right_wrist': (-0.981, -17.238),
+        'spine_lumbar': (7.704, 0.935, 1.784), 'spine_thoracic': (-5.629, -4.291, 1.742),
+        'neck': (0.873, -0.222, -27.732), 'head': (0.81, 0.0), 'right_clavicle': (6.27, -0.002),
+        'right_shoulder': (84.236, 14.693, 0.425), 'right_elbow': (34.551, 11.639),
+        'right_wrist': (-1.892, -24.773),
     })
     human.KeyJoints(8.8, {
-        'right_clavicle': (28.012, 5.547), 'right_shoulder': (74.038, 36.057, 6.173),
-        'right_elbow': (33.134, 21.17), 'right_wrist': (-1.337, -1.378),
+        'spine_lumbar': (14.641, 2.71, 0.537), 'spine_thoracic': (-9.038, -9.756, 1.128),
+        'neck': (-0.048, -0.612, -29.644), 'head': (-0.198, -0.001),
+        'right_clavicle': (17.933, -2.92), 'right_shoulder': (77.428, 25.292, 7.271),
+        'right_elbow': (39.567, 20.009), 'right_wrist': (-0.795, -9.501),
     })
     human.KeyJoints(8.9, {
-        'right_clavicle': (24.087, -5.213), 'right_shoulder': (72.667, 20.206, 4.031),
-        'right_elbow': (42.94, 15.954), 'right_wrist': (-2.96, -14.312),
+        'spine_lumbar': (15.848, 2.899, 0.704), 'spine_thoracic': (-10.258, -10.0, 1.502),
+        'neck': (-0.122, -0.658, -30.523), 'head': (-0.283, -0.003),
+        'right_clavicle': (21.513, -3.689), 'right_shoulder': (74.794, 28.29, 8.441),
+        'right_elbow': (40.551, 21.827), 'right_wrist': (-0.904, -5.378),
     })
     human.KeyJoints(9.0, {
-        'right_clavicle': (13.441, -6.274), 'right_shoulder': (80.416, 5.058, -4.51),
-        'right_elbow': (43.162, 4.984), 'right_wrist': (-5.75, -29.989),
+        'spine_lumbar': (4.848, -1.322, 3.756), 'spine_thoracic': (-11.472, -4.199, 3.089),
+        'neck': (4.833, 1.25, -30.119), 'head': (5.05, 0.006), 'right_clavicle': (9.26, -1.41),
+        'right_shoulder': (71.482, 16.893, -1.845), 'right_elbow': (33.599, 10.042),
+        'right_wrist': (-3.076, -20.959),
     })
     human.KeyJoints(9.1, {
-        'right_clavicle': (3.903, -2.43), 'right_shoulder': (88.493, 7.442, -1.812),
-        'right_elbow': (36.651, 8.137), 'right_wrist': (-2.795, -29.898),
+        'spine_lumbar': (6.095, 0.591, 2.777), 'spine_thoracic': (-5.265, -2.001, 2.453),
+        'neck': (1.04, -0.162, -27.944), 'head': (0.988, 0.0), 'right_clavicle': (3.974, 0.421),
+        'right_shoulder': (85.853, 12.606, -2.083), 'right_elbow': (33.338, 8.974),
+        'right_wrist': (-2.441, -28.023),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'right_clavicle': (6.467, -2.22), 'right_shoulder': (87.162, 11.023, 0.539),
-        'right_elbow': (36.135, 11.033), 'right_wrist': (-1.865, -26.714),
+        'spine_lumbar': (6.423, 1.008, 1.753), 'spine_thoracic': (-3.02, -2.116, 1.705),
+        'neck': (-0.097, -0.572, -26.612), 'head': (-0.225, -0.001),
+        'right_clavicle': (3.137, 0.757), 'right_shoulder': (88.983, 11.61, -0.464),
+        'right_elbow': (34.003, 10.145), 'right_wrist': (-1.864, -28.55),
     })
     human.KeyJoints(9.3, {
-        'right_clavicle': (25.046, 4.493), 'right_shoulder': (76.486, 33.808, 6.7),
-        'right_elbow': (33.299, 21.156), 'right_wrist': (-0.918, -3.84),
+        'spine_lumbar': (11.665, 1.656, 1.079), 'spine_thoracic': (-7.971, -8.029, 1.315),
+        'neck': (0.723, -0.307, -29.137), 'head': (0.638, 0.0), 'right_clavicle': (12.843, -1.741),
+        'right_shoulder': (79.213, 20.768, 4.366), 'right_elbow': (37.343, 16.393),
+        'right_wrist': (-1.109, -15.885),
     })
     human.KeyJoints(9.4, {
-        'right_clavicle': (27.86, 1.763), 'right_shoulder': (72.575, 31.714, 5.857),
-        'right_elbow': (36.834, 20.036), 'right_wrist': (-1.917, -4.338),
+        'spine_lumbar': (16.25, 3.083, 0.576), 'spine_thoracic': (-9.997, -10.0, 1.4),
+        'neck': (-0.47, -0.79, -30.497), 'head': (-0.658, -0.004),
+        'right_clavicle': (21.446, -3.653), 'right_shoulder': (75.827, 28.323, 8.563),
+        'right_elbow': (40.594, 21.948), 'right_wrist': (-0.819, -5.647),
     })
     human.KeyJoints(9.5, {
-        'right_clavicle': (17.514, -8.573), 'right_shoulder': (76.282, 7.203, -1.338),
-        'right_elbow': (45.697, 8.165), 'right_wrist': (-5.0, -27.07),
+        'spine_lumbar': (9.1, -0.062, 1.807), 'spine_thoracic': (-10.853, -7.461, 1.888),
+        'neck': (3.23, 0.649, -29.374), 'head': (3.333, 0.002), 'right_clavicle': (15.245, -2.684),
+        'right_shoulder': (70.392, 21.932, 4.341), 'right_elbow': (37.664, 16.58),
+        'right_wrist': (-1.68, -11.874),
     })
     human.KeyJoints(9.6, {
-        'right_clavicle': (8.66, -3.295), 'right_shoulder': (84.935, 6.825, -4.108),
-        'right_elbow': (39.133, 5.908), 'right_wrist': (-4.6, -29.885),
+        'spine_lumbar': (5.319, -0.178, 4.244), 'spine_thoracic': (-9.438, -2.424, 3.522),
+        'neck': (3.283, 0.657, -29.966), 'head': (3.386, 0.002), 'right_clavicle': (5.835, -0.179),
+        'right_shoulder': (78.98, 14.534, -4.077), 'right_elbow': (32.479, 7.619),
+        'right_wrist': (-3.418, -26.23),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
-        'right_clavicle': (1.145, -2.216), 'right_shoulder': (90.426, 7.612, -0.247),
-        'right_elbow': (35.446, 9.52), 'right_wrist': (-1.695, -29.911),
+        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
+        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
+        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
+        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(9.8, {
-        'right_clavicle': (17.938, 1.044), 'right_shoulder': (80.604, 24.6, 4.907),
-        'right_elbow': (34.963, 17.805), 'right_wrist': (-0.855, -13.329),
+        'spine_lumbar': (8.517, 0.978, 1.606), 'spine_thoracic': (-6.206, -5.194, 1.608),
+        'neck': (0.932, -0.206, -28.07), 'head': (0.871, 0.0), 'right_clavicle': (7.655, -0.398),
+        'right_shoulder': (82.935, 15.972, 1.285), 'right_elbow': (35.097, 12.655),
+        'right_wrist': (-1.683, -22.914),
     })
     human.KeyJoints(9.9, {
-        'right_clavicle': (28.267, 5.433), 'right_shoulder': (73.742, 35.929, 5.997),
-        'right_elbow': (33.308, 21.014), 'right_wrist': (-1.413, -1.436),
+        'spine_lumbar': (15.334, 2.969, 0.403), 'spine_thoracic': (-9.245, -9.991, 1.108),
+        'neck': (-0.291, -0.706, -29.706), 'head': (-0.461, -0.002),
+        'right_clavicle': (19.206, -3.205), 'right_shoulder': (77.187, 26.386, 7.956),
+        'right_elbow': (40.082, 20.883), 'right_wrist': (-0.749, -8.04),
     })
     human.KeyJoints(10.0, {
-        'right_clavicle': (22.443, -6.996), 'right_shoulder': (73.168, 16.089, 2.902),
-        'right_elbow': (44.445, 14.008), 'right_wrist': (-3.435, -18.185),
+        'spine_lumbar': (14.888, 2.549, 0.763), 'spine_thoracic': (-10.371, -9.912, 1.495),
+        'neck': (0.456, -0.427, -30.032), 'head': (0.343, -0.001),
+        'right_clavicle': (20.941, -3.636), 'right_shoulder': (73.752, 27.595, 8.201),
+        'right_elbow': (40.426, 21.413), 'right_wrist': (-0.983, -5.637),
     })
     human.KeyJoints(10.1, {
-        'right_clavicle': (12.252, -5.346), 'right_shoulder': (81.658, 5.276, -4.687),
-        'right_elbow': (42.055, 4.992), 'right_wrist': (-5.658, -30.0),
+        'spine_lumbar': (4.581, -1.188, 4.201), 'spine_thoracic': (-11.461, -3.463, 3.418),
+        'neck': (4.769, 1.219, -30.381), 'head': (4.979, 0.006), 'right_clavicle': (8.008, -1.029),
+        'right_shoulder': (73.003, 16.023, -3.204), 'right_elbow': (32.864, 8.673),
+        'right_wrist': (-3.402, -23.009),
     })
     human.KeyJoints(10.2, {
-        'right_clavicle': (2.317, -2.293), 'right_shoulder': (89.601, 7.503, -0.986),
-        'right_elbow': (35.973, 8.863), 'right_wrist': (-2.193, -29.948),
+        'spine_lumbar': (6.21, 0.823, 2.158), 'spine_thoracic': (-3.563, -1.798, 1.991),
+        'neck': (0.2, -0.467, -27.058), 'head': (0.091, -0.001), 'right_clavicle': (3.168, 0.656),
+        'right_shoulder': (88.346, 11.69, -1.227), 'right_elbow': (33.681, 9.532),
+        'right_wrist': (-2.043, -28.702),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'right_clavicle': (8.898, -1.856), 'right_shoulder': (85.765, 13.621, 1.627),
-        'right_elbow': (36.049, 12.56), 'right_wrist': (-1.526, -24.257),
+        'spine_lumbar': (6.648, 0.982, 1.925), 'spine_thoracic': (-4.221, -2.762, 1.852),
+        'neck': (0.437, -0.376, -27.057), 'head': (0.346, 0.0), 'right_clavicle': (4.056, 0.589),
+        'right_shoulder': (87.046, 12.587, -0.486), 'right_elbow': (34.013, 10.342),
+        'right_wrist': (-2.052, -27.535),
     })
     human.KeyJoints(10.4, {
-        'right_clavicle': (26.841, 5.157), 'right_shoulder': (75.05, 35.259, 6.45),
-        'right_elbow': (33.167, 21.168), 'right_wrist': (-1.149, -2.266),
+        'spine_lumbar': (12.738, 2.005, 0.901), 'spine_thoracic': (-8.424, -8.768, 1.248),
+        'neck': (0.511, -0.393, -29.386), 'head': (0.407, 0.0), 'right_clavicle': (14.642, -2.167),
+        'right_shoulder': (78.368, 22.394, 5.4), 'right_elbow': (38.137, 17.674),
+        'right_wrist': (-0.978, -13.551),
     })
     human.KeyJoints(10.5, {
-        'right_clavicle': (26.948, -0.538), 'right_shoulder': (72.418, 28.452, 5.537),
-        'right_elbow': (38.892, 19.079), 'right_wrist': (-2.197, -6.988),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.406, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(10.6, {
-        'right_clavicle': (16.043, -8.025), 'right_shoulder': (77.663, 5.764, -2.67),
-        'right_elbow': (45.132, 6.684), 'right_wrist': (-5.418, -28.677),
+        'spine_lumbar': (7.19, -0.855, 2.447), 'spine_thoracic': (-11.11, -6.276, 2.245),
+        'neck': (4.052, 0.961, -29.548), 'head': (4.215, 0.004), 'right_clavicle': (12.951, -2.255),
+        'right_shoulder': (70.065, 19.863, 2.207), 'right_elbow': (36.162, 14.236),
+        'right_wrist': (-2.119, -15.121),
     })
     human.KeyJoints(10.7, {
-        'right_clavicle': (7.291, -2.916), 'right_shoulder': (86.017, 7.15, -3.46),
-        'right_elbow': (38.299, 6.598), 'right_wrist': (-4.068, -29.841),
+        'spine_lumbar': (5.661, 0.081, 3.878), 'spine_thoracic': (-8.303, -2.307, 3.265),
+        'neck': (2.616, 0.411, -29.48), 'head': (2.673, 0.001), 'right_clavicle': (5.322, 0.0),
+        'right_shoulder': (81.039, 14.047, -3.621), 'right_elbow': (32.689, 7.931),
+        'right_wrist': (-3.167, -26.779),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
-        'right_clavicle': (2.281, -2.274), 'right_shoulder': (89.701, 8.091, -0.234),
-        'right_elbow': (35.719, 9.622), 'right_wrist': (-1.858, -29.451),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.993, -1.613, 1.56),
+        'neck': (-0.57, -0.747, -26.224), 'head': (-0.731, -0.002),
+        'right_clavicle': (2.423, 0.873), 'right_shoulder': (90.606, 10.834, -0.424),
+        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.675, -29.317),
     })
     human.KeyJoints(10.9, {
-        'right_clavicle': (20.727, 2.35), 'right_shoulder': (79.027, 28.299, 5.732),
-        'right_elbow': (34.35, 19.28), 'right_wrist': (-0.82, -9.534),
+        'spine_lumbar': (9.477, 1.11, 1.423), 'spine_thoracic': (-6.806, -6.164, 1.486),
+        'neck': (0.932, -0.213, -28.436), 'head': (0.868, 0.0), 'right_clavicle': (9.246, -0.834),
+        'right_shoulder': (81.604, 17.446, 2.262), 'right_elbow': (35.767, 13.82),
+        'right_wrist': (-1.467, -20.742),
     })
     human.KeyJoints(11.0, {
-        'right_clavicle': (28.38, 4.945), 'right_shoulder': (73.347, 35.427, 5.968),
-        'right_elbow': (33.864, 20.842), 'right_wrist': (-1.532, -1.708),
+        'spine_lumbar': (15.816, 3.048, 0.436), 'spine_thoracic': (-9.544, -10.0, 1.18),
+        'neck': (-0.455, -0.778, -30.118), 'head': (-0.639, -0.004),
+        'right_clavicle': (20.294, -3.429), 'right_shoulder': (76.701, 27.325, 8.313),
+        'right_elbow': (40.374, 21.456), 'right_wrist': (-0.763, -6.854),
     })
     human.KeyJoints(11.1, {
-        'right_clavicle': (20.763, -8.08), 'right_shoulder': (73.953, 12.438, 1.581),
-        'right_elbow': (45.337, 11.975), 'right_wrist': (-3.951, -21.734),
+        'spine_lumbar': (13.286, 1.873, 0.932), 'spine_thoracic': (-10.49, -9.477, 1.514),
+        'neck': (1.276, -0.106, -29.672), 'head': (1.23, 0.0), 'right_clavicle': (19.58, -3.431),
+        'right_shoulder': (72.479, 26.157, 7.49), 'right_elbow': (39.946, 20.394),
+        'right_wrist': (-1.119, -6.784),
     })
     human.KeyJoints(11.2, {
-        'right_clavicle': (11.094, -4.476), 'right_shoulder': (82.823, 5.812, -4.768),
-        'right_elbow': (40.946, 5.072), 'right_wrist': (-5.397, -30.0),
+        'spine_lumbar': (4.648, -0.84, 4.466), 'spine_thoracic': (-11.066, -2.93, 3.636),
+        'neck': (4.421, 1.084, -30.458), 'head': (4.606, 0.005), 'right_clavicle': (7.081, -0.689),
+        'right_shoulder': (74.854, 15.431, -4.081), 'right_elbow': (32.444, 7.788),
+        'right_wrist': (-3.589, -24.494),
     })
     human.KeyJoints(11.3, {
-        'right_clavicle': (1.151, -2.216), 'right_shoulder': (90.41, 7.52, -0.373),
-        'right_elbow': (35.488, 9.397), 'right_wrist': (-1.749, -29.991),
+        'spine_lumbar': (6.273, 0.994, 1.679), 'spine_thoracic': (-2.25, -1.639, 1.632),
+        'neck': (-0.444, -0.701, -26.363), 'head': (-0.596, -0.002),
+        'right_clavicle': (2.543, 0.837), 'right_shoulder': (90.238, 10.972, -0.561),
+        'right_elbow': (33.946, 9.965), 'right_wrist': (-1.736, -29.22),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'right_clavicle': (11.747, -1.185), 'right_shoulder': (84.134, 16.895, 2.792),
-        'right_elbow': (35.834, 14.303), 'right_wrist': (-1.205, -21.07),
+        'spine_lumbar': (7.052, 0.953, 1.944), 'spine_thoracic': (-5.085, -3.512, 1.87),
+        'neck': (0.773, -0.255, -27.447), 'head': (0.705, 0.0), 'right_clavicle': (5.132, 0.337),
+        'right_shoulder': (85.433, 13.648, -0.363), 'right_elbow': (34.103, 10.777),
+        'right_wrist': (-2.074, -26.25),
     })
     human.KeyJoints(11.5, {
-        'right_clavicle': (27.808, 5.481), 'right_shoulder': (74.216, 35.923, 6.226),
-        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.304, -1.528),
+        'spine_lumbar': (13.756, 2.374, 0.706), 'spine_thoracic': (-8.767, -9.356, 1.177),
+        'neck': (0.235, -0.502, -29.547), 'right_clavicle': (16.376, -2.567),
+        'right_shoulder': (77.793, 23.931, 6.407), 'right_elbow': (38.905, 18.919),
+        'right_wrist': (-0.868, -11.373),
     })
     human.KeyJoints(11.6, {
-        'right_clavicle': (25.662, -2.936), 'right_shoulder': (72.406, 24.537, 4.942),
-        'right_elbow': (40.989, 17.718), 'right_wrist': (-2.541, -10.373),
+        'spine_lumbar': (16.222, 3.043, 0.661), 'spine_thoracic': (-10.13, -10.0, 1.489),
+        'neck': (-0.387, -0.761, -30.619), 'head': (-0.569, -0.004),
+        'right_clavicle': (21.603, -3.684), 'right_shoulder': (75.479, 28.437, 8.516),
+        'right_elbow': (40.573, 21.947), 'right_wrist': (-0.852, -5.461),
     })
     human.KeyJoints(11.7, {
-        'right_clavicle': (14.705, -7.271), 'right_shoulder': (79.038, 5.278, -3.751),
-        'right_elbow': (44.308, 5.632), 'right_wrist': (-5.634, -29.529),
+        'spine_lumbar': (5.727, -1.31, 3.127), 'spine_thoracic': (-11.382, -5.164, 2.666),
+        'neck': (4.627, 1.176, -29.845), 'head': (4.831, 0.005), 'right_clavicle': (10.925, -1.828),
+        'right_shoulder': (70.491, 18.161, 0.053), 'right_elbow': (34.74, 11.975),
+        'right_wrist': (-2.611, -18.258),
     })
     human.KeyJoints(11.8, {
-        'right_clavicle': (5.666, -2.64), 'right_shoulder': (87.235, 7.321, -2.704),
-        'right_elbow': (37.455, 7.333), 'right_wrist': (-3.461, -29.858),
+        'spine_lumbar': (5.922, 0.33, 3.376), 'spine_thoracic': (-6.942, -2.188, 2.896),
+        'neck': (1.886, 0.145, -28.794), 'head': (1.892, 0.001), 'right_clavicle': (4.749, 0.185),
+        'right_shoulder': (83.266, 13.451, -2.904), 'right_elbow': (32.998, 8.429),
+        'right_wrist': (-2.832, -27.33),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
-        'right_clavicle': (3.742, -2.324), 'right_shoulder': (88.779, 8.806, -0.187),
-        'right_elbow': (36.029, 9.846), 'right_wrist': (-2.017, -28.77),
+        'spine_lumbar': (6.316, 1.023, 1.625), 'spine_thoracic': (-2.241, -1.733, 1.596),
+        'neck': (-0.455, -0.704, -26.319), 'head': (-0.608, -0.002),
+        'right_clavicle': (2.594, 0.846), 'right_shoulder': (90.214, 11.02, -0.436),
+        'right_elbow': (34.001, 10.072), 'right_wrist': (-1.722, -29.134),
     })
     human.KeyJoints(12.0, {
-        'right_clavicle': (21.724, 2.851), 'right_shoulder': (78.464, 29.638, 6.011),
-        'right_elbow': (34.1, 19.789), 'right_wrist': (-0.825, -8.152),
+        'spine_lumbar': (10.524, 1.332, 1.249), 'spine_thoracic': (-7.396, -7.119, 1.388),
+        'neck': (0.869, -0.245, -28.8), 'head': (0.797, 0.0), 'right_clavicle': (10.968, -1.28),
+        'right_shoulder': (80.342, 19.039, 3.288), 'right_elbow': (36.516, 15.063),
+        'right_wrist': (-1.274, -18.397),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (8.55, 1.364, 1.21), 'spine_thoracic': (-3.702, -3.662, 1.404),
-        'neck': (-1.267, 0.0, -26.914), 'right_clavicle': (28.433, 4.747),
-        'right_shoulder': (73.246, 35.233, 5.966), 'right_elbow': (34.079, 20.812),
-        'right_wrist': (-1.567, -1.863),
+        'spine_lumbar': (16.106, 3.077, 0.518), 'spine_thoracic': (-9.83, -10.0, 1.317),
+        'neck': (-0.473, -0.789, -30.351), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.044, -3.576), 'right_shoulder': (76.152, 27.974, 8.489),
+        'right_elbow': (40.526, 21.787), 'right_wrist': (-0.796, -6.064),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (7.12, 1.055, 1.315), 'spine_thoracic': (-2.524, -2.487, 1.392),
-        'neck': (-1.317, 0.0, -26.325), 'right_clavicle': (20.703, -6.627),
-        'right_shoulder': (74.587, 12.535, 0.799), 'right_elbow': (44.61, 11.274),
-        'right_wrist': (-4.183, -23.33),
+        'spine_lumbar': (11.234, 0.893, 1.229), 'spine_thoracic': (-10.555, -8.617, 1.593),
+        'neck': (2.234, 0.266, -29.398), 'head': (2.263, 0.001), 'right_clavicle': (17.605, -3.126),
+        'right_shoulder': (71.325, 24.148, 6.233), 'right_elbow': (38.959, 18.784),
+        'right_wrist': (-1.316, -9.048),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (6.143, 0.851, 1.394), 'spine_thoracic': (-1.704, -1.654, 1.386),
-        'neck': (-1.379, 0.0, -25.911), 'right_clavicle': (11.533, -1.085),
-        'right_shoulder': (83.952, 9.213, -4.868), 'right_elbow': (38.557, 5.748),
-        'right_wrist': (-5.108, -29.99),
+        'spine_lumbar': (4.691, -0.711, 4.278), 'spine_thoracic': (-10.13, -2.639, 3.484),
+        'neck': (3.955, 0.911, -30.151), 'head': (4.107, 0.003), 'right_clavicle': (6.343, -0.501),
+        'right_shoulder': (77.08, 14.801, -4.09), 'right_elbow': (32.169, 7.66),
+        'right_wrist': (-3.489, -26.122),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.391913, duration=0.072)
     human.KeyJoints(12.4, {
-        'spine_lumbar': (6.038, 0.806, 1.411), 'neck': (-1.343, 0.0, -25.932),
-        'right_clavicle': (2.313, 0.78), 'right_shoulder': (90.86, 10.606, -0.379),
-        'right_elbow': (33.717, 10.07), 'right_wrist': (-1.596, -30.0),
+        'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
+        'neck': (-0.57, -0.745, -26.12), 'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
+        'right_shoulder': (90.86, 10.606, -0.379), 'right_elbow': (33.717, 10.07),
+        'right_wrist': (-1.596, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.338337)
-    human.KeyJoints(12.5, {'neck': (-1.357, 0.0, -24.47), 'head': (-0.452, 0.0)})
-    human.KeyJoints(12.6, {'neck': (-1.494, 0.0, -9.548)})
+    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.336746)
+    human.KeyJoints(12.5, {'neck': (-0.59, -0.723, -24.645), 'head': (-0.742, -0.002)})
+    human.KeyJoints(12.6, {'neck': (-0.796, -0.509, -9.61)})
     human.KeyJoints(12.7, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-1.676, 0.0, 10.102), 'right_clavicle': (2.313, 0.78),
+        'neck': (-1.067, -0.228, 10.105), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.86, 10.606, -0.379),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
         'spine_lumbar': (5.977, 0.616, 1.52), 'spine_thoracic': (-1.72, -1.638, 1.501),
-        'neck': (-1.769, 0.0, 20.188), 'head': (-0.59, 0.0), 'right_clavicle': (2.31, 0.883),
+        'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.883),
         'right_shoulder': (90.793, 10.502, -0.325), 'right_elbow': (33.752, 10.092),
         'right_wrist': (-1.58, -29.964),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.80225, duration=10.446157)
+    human.LookAt((20.0, 135.0, 111.6), start=12.800659, duration=10.447749)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.443, -1.075, 2.487), 'spine_thoracic': (-2.396, -1.949, 2.419),
-        'neck': (-0.983, 0.0, 13.693), 'head': (-0.311, 0.0), 'right_clavicle': (2.283, 1.807),
-        'right_shoulder': (90.198, 9.569, 0.159), 'right_elbow': (34.063, 10.291),
-        'right_wrist': (-1.445, -29.642),
+        'neck': (-0.659, -0.174, 13.393), 'head': (-0.592, -0.003),
+        'right_clavicle': (2.283, 1.807), 'right_shoulder': (90.198, 9.569, 0.159),
+        'right_elbow': (34.063, 10.291), 'right_wrist': (-1.445, -29.642),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (4.41, -4.524, 4.456), 'spine_thoracic': (-3.775, -2.584, 4.289),
-        'neck': (0.609, 0.0, 1.456), 'right_clavicle': (2.222, 3.681),
+        'neck': (0.424, -0.322, 1.282), 'right_clavicle': (2.222, 3.681),
         'right_shoulder': (88.929, 7.712, 1.123), 'right_wrist': (-1.177, -29.009),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (3.762, -8.713, 6.815), 'spine_thoracic': (-5.525, -3.368, 6.527),
-        'neck': (2.059, 0.0, -6.991), 'head': (0.883, 0.0), 'right_clavicle': (2.194, 5.853),
+        'neck': (1.431, -0.398, -6.99), 'head': (1.525, -0.013), 'right_clavicle': (2.194, 5.853),
         'right_shoulder': (87.47, 5.962, 2.017), 'right_elbow': (35.192, 11.093),
         'right_wrist': (-0.957, -28.528),
     })
     human.KeyJoints(13.2, {
         'spine_lumbar': (5.408, -12.456, 8.828), 'spine_thoracic': (-7.537, -4.152, 8.429),
-        'neck': (2.861, 0.0, -10.849), 'head': (1.226, 0.0), 'right_clavicle': (2.51, 7.41),
+        'neck': (1.994, -0.434, -10.792), 'head': (2.112, -0.014), 'right_clavicle': (2.51, 7.41),
         'right_shoulder': (87.637, 6.373, 1.73), 'right_elbow': (34.811, 11.128),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (6.89, -13.92, 9.585), 'spine_thoracic': (-8.527, -4.496, 9.14),
-        'neck': (0.846, 0.0, -13.26), 'head': (0.363, 0.0), 'right_clavicle': (2.788, 7.873),
+        'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.788, 7.873),
         'right_shoulder': (88.41, 7.299, 1.196), 'right_elbow': (34.346, 11.015),
         'right_wrist': (-1.423, -29.914),
     })
@@ -642,607 +828,607 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.456, 0.0, -14.888), 'head': (0.195, 0.0), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.537, 7.32, 1.181), 'right_elbow': (34.178, 11.013),
         'right_wrist': (-1.418, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.09, -14.996, 9.1), 'spine_thoracic': (-10.051, -5.359, 8.809),
-        'neck': (2.148, 0.0, -15.568), 'head': (0.921, 0.0), 'right_clavicle': (5.139, 7.177),
+        'neck': (1.502, -0.506, -15.437), 'head': (1.648, -0.015), 'right_clavicle': (5.139, 7.177),
         'right_shoulder': (86.05, 8.958, 1.795), 'right_elbow': (32.61, 11.821),
         'right_wrist': (-1.276, -29.978),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.013, -19.794, 4.872), 'spine_thoracic': (-11.449, -9.911, 6.537),
-        'neck': (5.006, 0.0, -16.422), 'head': (2.145, 0.0), 'right_clavicle': (17.492, 4.436),
-        'right_shoulder': (81.994, 14.641, 8.707), 'right_elbow': (24.952, 19.639),
-        'right_wrist': (1.95, -25.526),
+        'neck': (3.486, -0.476, -16.263), 'head': (3.643, -0.015),
+        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.994, 14.641, 8.707),
+        'right_elbow': (24.952, 19.639), 'right_wrist': (1.95, -25.526),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.095, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (4.489, 0.0, -15.855), 'head': (1.924, 0.0), 'right_clavicle': (22.181, 3.735),
-        'right_shoulder': (81.81, 17.052, 12.683), 'right_elbow': (25.617, 23.582),
-        'right_wrist': (3.465, -22.192),
+        'neck': (3.126, -0.476, -15.702), 'head': (3.279, -0.015),
+        'right_clavicle': (22.181, 3.735), 'right_shoulder': (81.81, 17.052, 12.683),
+        'right_elbow': (25.617, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(13.8, {
         'spine_lumbar': (-2.138, -19.384, 6.907), 'spine_thoracic': (-11.434, -3.627, 7.819),
-        'neck': (8.346, 0.0, -14.03), 'head': (3.577, 0.0), 'right_clavicle': (10.353, 6.811),
+        'neck': (5.83, -0.394, -13.903), 'head': (5.973, -0.014), 'right_clavicle': (10.353, 6.811),
         'right_shoulder': (80.975, 7.822, 1.397), 'right_elbow': (21.252, 12.163),
         'right_wrist': (-1.111, -29.931),
     })
     human.KeyJoints(13.9, {
         'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.314, -3.777, 8.847),
-        'neck': (5.264, 0.0, -16.773), 'head': (2.256, 0.0), 'right_clavicle': (4.162, 7.512),
+        'neck': (3.667, -0.476, -16.615), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
         'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.529, 7.241),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (1.857, -17.664, 8.555), 'spine_thoracic': (-9.037, -6.244, 8.322),
-        'neck': (4.487, 0.0, -17.039), 'head': (1.923, 0.0), 'right_clavicle': (3.013, 7.218),
+        'neck': (3.126, -0.491, -16.882), 'head': (3.287, -0.015), 'right_clavicle': (3.013, 7.218),
         'right_shoulder': (87.44, 6.875, -4.204), 'right_elbow': (23.064, 7.107),
         'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(14.1, {
         'spine_lumbar': (2.472, -19.864, 6.254), 'spine_thoracic': (-11.04, -9.472, 7.077),
-        'neck': (5.808, 0.0, -17.387), 'head': (2.489, 0.0), 'right_clavicle': (11.708, 5.324),
-        'right_shoulder': (82.593, 11.688, 3.067), 'right_elbow': (23.288, 14.197),
-        'right_wrist': (-0.337, -28.465),
+        'neck': (4.043, -0.476, -17.214), 'head': (4.209, -0.015),
+        'right_clavicle': (11.708, 5.324), 'right_shoulder': (82.593, 11.688, 3.067),
+        'right_elbow': (23.288, 14.197), 'right_wrist': (-0.337, -28.465),
     })
     human.KeyJoints(14.2, {
         'spine_lumbar': (5.137, -19.943, 3.905), 'spine_thoracic': (-11.791, -10.0, 6.213),
-        'neck': (4.45, 0.0, -15.971), 'head': (1.907, 0.0), 'right_clavicle': (21.927, 3.74),
+        'neck': (3.098, -0.478, -15.818), 'head': (3.252, -0.015), 'right_clavicle': (21.927, 3.74),
         'right_shoulder': (81.863, 16.998, 12.463), 'right_elbow': (25.597, 23.379),
         'right_wrist': (3.379, -22.377),
     })
     human.KeyJoints(14.3, {
         'spine_lumbar': (0.058, -20.0, 4.697), 'spine_thoracic': (-11.515, -7.952, 6.598),
-        'neck': (7.279, 0.0, -13.769), 'head': (3.12, 0.0), 'right_clavicle': (17.524, 5.255),
-        'right_shoulder': (80.275, 11.902, 8.819), 'right_elbow': (23.532, 19.347),
-        'right_wrist': (2.017, -25.972),
+        'neck': (5.081, -0.407, -13.644), 'head': (5.221, -0.014),
+        'right_clavicle': (17.524, 5.255), 'right_shoulder': (80.275, 11.902, 8.819),
+        'right_elbow': (23.532, 19.347), 'right_wrist': (2.017, -25.972),
     })
     human.KeyJoints(14.4, {
         'spine_lumbar': (0.529, -17.996, 8.985), 'spine_thoracic': (-11.244, -1.911, 9.051),
-        'neck': (6.471, 0.0, -16.011), 'head': (2.773, 0.0), 'right_clavicle': (5.337, 7.671),
+        'neck': (4.51, -0.449, -15.86), 'head': (4.666, -0.014), 'right_clavicle': (5.337, 7.671),
         'right_shoulder': (84.327, 7.305, -3.631), 'right_elbow': (21.868, 7.607),
         'right_wrist': (-3.369, -29.917),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.6, {
         'spine_lumbar': (1.766, -18.843, 7.83), 'spine_thoracic': (-10.515, -7.668, 7.918),
-        'neck': (5.731, 0.0, -17.579), 'head': (2.456, 0.0), 'right_clavicle': (6.523, 6.404),
+        'neck': (3.99, -0.48, -17.407), 'head': (4.157, -0.015), 'right_clavicle': (6.523, 6.404),
         'right_shoulder': (84.491, 9.036, -1.778), 'right_elbow': (22.77, 9.484),
         'right_wrist': (-2.414, -29.974),
     })
     human.KeyJoints(14.7, {
         'spine_lumbar': (4.311, -20.0, 4.445), 'spine_thoracic': (-11.55, -10.0, 6.384),
-        'neck': (4.88, 0.0, -16.298), 'head': (2.091, 0.0), 'right_clavicle': (19.266, 4.171),
-        'right_shoulder': (81.862, 15.506, 10.1), 'right_elbow': (24.883, 21.052),
-        'right_wrist': (2.493, -24.343),
+        'neck': (3.398, -0.476, -16.139), 'head': (3.554, -0.015),
+        'right_clavicle': (19.266, 4.171), 'right_shoulder': (81.862, 15.506, 10.1),
+        'right_elbow': (24.883, 21.052), 'right_wrist': (2.493, -24.343),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (4.487, -19.882, 3.844), 'spine_thoracic': (-11.806, -10.0, 6.197),
-        'neck': (4.854, 0.0, -15.48), 'head': (2.08, 0.0), 'right_clavicle': (22.003, 3.86),
+        'neck': (3.38, -0.466, -15.333), 'head': (3.531, -0.015), 'right_clavicle': (22.003, 3.86),
         'right_shoulder': (81.54, 16.568, 12.632), 'right_elbow': (25.516, 23.45),
         'right_wrist': (3.444, -22.273),
     })
     human.KeyJoints(14.9, {
         'spine_lumbar': (-1.763, -18.946, 7.689), 'spine_thoracic': (-11.464, -2.522, 8.293),
-        'neck': (8.081, 0.0, -14.561), 'head': (3.463, 0.0), 'right_clavicle': (8.401, 7.192),
+        'neck': (5.643, -0.405, -14.428), 'head': (5.789, -0.014), 'right_clavicle': (8.401, 7.192),
         'right_shoulder': (81.784, 7.301, -0.757), 'right_elbow': (21.033, 10.17),
         'right_wrist': (-2.072, -29.994),
     })
     human.KeyJoints(15.0, {
         'spine_lumbar': (1.788, -17.77, 8.809), 'spine_thoracic': (-9.814, -4.659, 8.67),
-        'neck': (4.919, 0.0, -16.886), 'head': (2.108, 0.0), 'right_clavicle': (3.681, 7.417),
+        'neck': (3.427, -0.483, -16.729), 'head': (3.587, -0.015), 'right_clavicle': (3.681, 7.417),
         'right_shoulder': (86.745, 7.212, -4.178), 'right_elbow': (22.748, 7.16),
         'right_wrist': (-3.415, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (1.808, -17.817, 8.537), 'spine_thoracic': (-9.418, -6.344, 8.318),
-        'neck': (4.798, 0.0, -17.152), 'head': (2.056, 0.0), 'right_clavicle': (3.494, 7.133),
+        'neck': (3.342, -0.488, -16.992), 'head': (3.504, -0.015), 'right_clavicle': (3.494, 7.133),
         'right_shoulder': (86.849, 7.222, -4.001), 'right_elbow': (22.957, 7.309),
         'right_wrist': (-3.273, -30.0),
     })
     human.KeyJoints(15.2, {
         'spine_lumbar': (2.892, -19.985, 5.721), 'spine_thoracic': (-11.175, -9.807, 6.847),
-        'neck': (5.635, 0.0, -17.136), 'head': (2.415, 0.0), 'right_clavicle': (13.737, 4.996),
-        'right_shoulder': (82.221, 12.69, 4.981), 'right_elbow': (23.628, 16.058),
-        'right_wrist': (0.465, -27.531),
+        'neck': (3.923, -0.476, -16.967), 'head': (4.087, -0.015),
+        'right_clavicle': (13.737, 4.996), 'right_shoulder': (82.221, 12.69, 4.981),
+        'right_elbow': (23.628, 16.058), 'right_wrist': (0.465, -27.531),
     })
     human.KeyJoints(15.3, {
         'spine_lumbar': (5.203, -19.931, 3.867), 'spine_thoracic': (-11.815, -10.0, 6.205),
-        'neck': (4.418, 0.0, -15.946), 'head': (1.893, 0.0), 'right_clavicle': (22.138, 3.708),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.138, 3.708),
         'right_shoulder': (81.865, 17.118, 12.643), 'right_elbow': (25.649, 23.557),
         'right_wrist': (3.447, -22.215),
     })
     human.KeyJoints(15.4, {
         'spine_lumbar': (-1.268, -19.968, 5.352), 'spine_thoracic': (-11.44, -6.511, 6.944),
-        'neck': (7.963, 0.0, -13.586), 'head': (3.413, 0.0), 'right_clavicle': (15.057, 5.84),
+        'neck': (5.562, -0.394, -13.464), 'head': (5.702, -0.014), 'right_clavicle': (15.057, 5.84),
         'right_shoulder': (80.23, 10.141, 6.368), 'right_elbow': (22.559, 16.917),
         'right_wrist': (1.027, -27.746),
     })
     human.KeyJoints(15.5, {
         'spine_lumbar': (1.074, -17.916, 9.05), 'spine_thoracic': (-11.016, -2.349, 9.074),
-        'neck': (6.001, 0.0, -16.346), 'head': (2.572, 0.0), 'right_clavicle': (4.869, 7.676),
+        'neck': (4.182, -0.46, -16.191), 'head': (4.34, -0.015), 'right_clavicle': (4.869, 7.676),
         'right_shoulder': (85.019, 7.386, -3.9), 'right_elbow': (22.133, 7.393),
         'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(15.7, {
         'spine_lumbar': (1.898, -19.251, 7.349), 'spine_thoracic': (-10.716, -8.343, 7.636),
-        'neck': (5.855, 0.0, -17.598), 'head': (2.509, 0.0), 'right_clavicle': (8.012, 6.049),
+        'neck': (4.077, -0.478, -17.425), 'head': (4.244, -0.015), 'right_clavicle': (8.012, 6.049),
         'right_shoulder': (83.781, 9.82, -0.408), 'right_elbow': (22.865, 10.817),
         'right_wrist': (-1.825, -29.731),
     })
     human.KeyJoints(15.8, {
         'spine_lumbar': (4.697, -20.0, 4.174), 'spine_thoracic': (-11.648, -10.0, 6.288),
-        'neck': (4.671, 0.0, -16.145), 'head': (2.002, 0.0), 'right_clavicle': (20.512, 3.964),
-        'right_shoulder': (81.856, 16.202, 11.229), 'right_elbow': (25.235, 22.159),
-        'right_wrist': (2.914, -23.44),
+        'neck': (3.252, -0.477, -15.989), 'head': (3.407, -0.015),
+        'right_clavicle': (20.512, 3.964), 'right_shoulder': (81.856, 16.202, 11.229),
+        'right_elbow': (25.235, 22.159), 'right_wrist': (2.914, -23.44),
     })
     human.KeyJoints(15.9, {
         'spine_lumbar': (3.315, -19.914, 3.928), 'spine_thoracic': (-11.735, -9.779, 6.22),
-        'neck': (5.525, 0.0, -14.913), 'head': (2.368, 0.0), 'right_clavicle': (21.209, 4.164),
-        'right_shoulder': (81.108, 15.471, 12.087), 'right_elbow': (25.172, 22.782),
-        'right_wrist': (3.25, -22.876),
+        'neck': (3.849, -0.449, -14.774), 'head': (3.997, -0.015),
+        'right_clavicle': (21.209, 4.164), 'right_shoulder': (81.108, 15.471, 12.087),
+        'right_elbow': (25.172, 22.782), 'right_wrist': (3.25, -22.876),
     })
     human.KeyJoints(16.0, {
         'spine_lumbar': (-1.073, -18.523, 8.303), 'spine_thoracic': (-11.459, -1.941, 8.674),
-        'neck': (7.623, 0.0, -15.101), 'head': (3.267, 0.0), 'right_clavicle': (7.0, 7.462),
+        'neck': (5.319, -0.42, -14.961), 'head': (5.469, -0.014), 'right_clavicle': (7.0, 7.462),
         'right_shoulder': (82.652, 7.192, -2.177), 'right_elbow': (21.11, 8.878),
         'right_wrist': (-2.718, -29.998),
     })
     human.KeyJoints(16.1, {
         'spine_lumbar': (1.856, -17.681, 8.674), 'spine_thoracic': (-9.309, -5.505, 8.483),
-        'neck': (4.604, 0.0, -16.948), 'head': (1.973, 0.0), 'right_clavicle': (3.214, 7.326),
+        'neck': (3.208, -0.488, -16.792), 'head': (3.369, -0.015), 'right_clavicle': (3.214, 7.326),
         'right_shoulder': (87.263, 6.958, -4.235), 'right_elbow': (22.946, 7.09),
         'right_wrist': (-3.371, -29.97),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (1.744, -18.083, 8.467), 'spine_thoracic': (-9.96, -6.566, 8.301),
-        'neck': (5.242, 0.0, -17.344), 'head': (2.247, 0.0), 'right_clavicle': (4.306, 6.974),
+        'neck': (3.651, -0.484, -17.178), 'head': (3.815, -0.015), 'right_clavicle': (4.306, 6.974),
         'right_shoulder': (85.957, 7.778, -3.588), 'right_elbow': (22.815, 7.717),
         'right_wrist': (-3.154, -30.0),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (3.362, -20.0, 5.237), 'spine_thoracic': (-11.307, -9.976, 6.666),
-        'neck': (5.398, 0.0, -16.826), 'head': (2.314, 0.0), 'right_clavicle': (15.764, 4.701),
+        'neck': (3.759, -0.475, -16.66), 'head': (3.92, -0.015), 'right_clavicle': (15.764, 4.701),
         'right_shoulder': (82.002, 13.686, 6.873), 'right_elbow': (24.026, 17.9),
         'right_wrist': (1.237, -26.493),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (5.212, -19.927, 3.863), 'spine_thoracic': (-11.819, -10.0, 6.205),
-        'neck': (4.414, 0.0, -15.941), 'head': (1.892, 0.0), 'right_clavicle': (22.171, 3.703),
-        'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
-        'right_wrist': (3.458, -22.191),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015),
+        'right_clavicle': (22.171, 3.703), 'right_shoulder': (81.865, 17.135, 12.671),
+        'right_elbow': (25.656, 23.583), 'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (-1.963, -19.788, 6.117), 'spine_thoracic': (-11.415, -4.978, 7.36),
-        'neck': (8.294, 0.0, -13.736), 'head': (3.555, 0.0), 'right_clavicle': (12.558, 6.365),
-        'right_shoulder': (80.412, 8.752, 3.766), 'right_elbow': (21.765, 14.404),
-        'right_wrist': (-0.074, -29.117),
+        'neck': (5.794, -0.391, -13.613), 'head': (5.935, -0.014),
+        'right_clavicle': (12.558, 6.365), 'right_shoulder': (80.412, 8.752, 3.766),
+        'right_elbow': (21.765, 14.404), 'right_wrist': (-0.074, -29.117),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (1.449, -17.887, 9.002), 'spine_thoracic': (-10.704, -3.002, 8.98),
-        'neck': (5.6, 0.0, -16.579), 'head': (2.4, 0.0), 'right_clavicle': (4.535, 7.604),
+        'neck': (3.901, -0.469, -16.423), 'head': (4.06, -0.015), 'right_clavicle': (4.535, 7.604),
         'right_shoulder': (85.587, 7.389, -4.014), 'right_elbow': (22.329, 7.313),
         'right_wrist': (-3.445, -29.891),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.893, -6.213, 8.323),
-        'neck': (4.37, 0.0, -16.994), 'head': (1.873, 0.0), 'right_clavicle': (2.837, 7.247),
+        'neck': (3.046, -0.492, -16.839), 'head': (3.206, -0.015), 'right_clavicle': (2.837, 7.247),
         'right_shoulder': (87.662, 6.746, -4.271), 'right_elbow': (23.104, 7.04),
         'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(16.8, {
         'spine_lumbar': (2.13, -19.609, 6.815), 'spine_thoracic': (-10.889, -8.967, 7.349),
-        'neck': (5.886, 0.0, -17.543), 'head': (2.523, 0.0), 'right_clavicle': (9.749, 5.683),
+        'neck': (4.098, -0.477, -17.369), 'head': (4.265, -0.015), 'right_clavicle': (9.749, 5.683),
         'right_shoulder': (83.13, 10.708, 1.217), 'right_elbow': (23.028, 12.397),
         'right_wrist': (-1.126, -29.225),
     })
     human.KeyJoints(16.9, {
         'spine_lumbar': (4.972, -19.972, 4.001), 'spine_thoracic': (-11.733, -10.0, 6.238),
-        'neck': (4.531, 0.0, -16.038), 'head': (1.942, 0.0), 'right_clavicle': (21.399, 3.823),
-        'right_shoulder': (81.859, 16.7, 12.007), 'right_elbow': (25.465, 22.928),
-        'right_wrist': (3.207, -22.779),
+        'neck': (3.155, -0.478, -15.884), 'head': (3.309, -0.015),
+        'right_clavicle': (21.399, 3.823), 'right_shoulder': (81.859, 16.7, 12.007),
+        'right_elbow': (25.465, 22.928), 'right_wrist': (3.207, -22.779),
     })
     human.KeyJoints(17.0, {
         'spine_lumbar': (1.73, -19.989, 4.202), 'spine_thoracic': (-11.627, -9.099, 6.345),
-        'neck': (6.396, 0.0, -14.29), 'head': (2.741, 0.0), 'right_clavicle': (19.686, 4.653),
+        'neck': (4.46, -0.428, -14.158), 'head': (4.604, -0.014), 'right_clavicle': (19.686, 4.653),
         'right_shoulder': (80.631, 13.823, 10.822), 'right_elbow': (24.489, 21.405),
         'right_wrist': (2.786, -24.172),
     })
     human.KeyJoints(17.1, {
         'spine_lumbar': (-0.219, -18.163, 8.751), 'spine_thoracic': (-11.395, -1.68, 8.945),
-        'neck': (7.03, 0.0, -15.567), 'head': (3.013, 0.0), 'right_clavicle': (5.985, 7.634),
+        'neck': (4.902, -0.435, -15.421), 'head': (5.055, -0.014), 'right_clavicle': (5.985, 7.634),
         'right_shoulder': (83.526, 7.179, -3.092), 'right_elbow': (21.544, 8.061),
         'right_wrist': (-3.133, -29.985),
     })
     human.KeyJoints(17.2, {
         'spine_lumbar': (1.877, -17.613, 8.571), 'spine_thoracic': (-8.935, -6.123, 8.343),
-        'neck': (4.39, 0.0, -16.986), 'head': (1.882, 0.0), 'right_clavicle': (2.871, 7.259),
+        'neck': (3.059, -0.492, -16.83), 'head': (3.22, -0.015), 'right_clavicle': (2.871, 7.259),
         'right_shoulder': (87.628, 6.763, -4.272), 'right_elbow': (23.087, 7.041),
         'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (1.738, -18.435, 8.259), 'spine_thoracic': (-10.29, -7.004, 8.194),
-        'neck': (5.526, 0.0, -17.557), 'head': (2.368, 0.0), 'right_clavicle': (5.311, 6.729),
+        'neck': (3.848, -0.482, -17.386), 'head': (4.014, -0.015), 'right_clavicle': (5.311, 6.729),
         'right_shoulder': (85.185, 8.38, -2.871), 'right_elbow': (22.768, 8.42),
         'right_wrist': (-2.889, -30.0),
     })
     human.KeyJoints(17.4, {
         'spine_lumbar': (3.845, -20.0, 4.81), 'spine_thoracic': (-11.435, -10.0, 6.516),
-        'neck': (5.136, 0.0, -16.532), 'head': (2.201, 0.0), 'right_clavicle': (17.646, 4.427),
+        'neck': (3.576, -0.475, -16.37), 'head': (3.735, -0.015), 'right_clavicle': (17.646, 4.427),
         'right_shoulder': (81.896, 14.639, 8.611), 'right_elbow': (24.455, 19.596),
         'right_wrist': (1.925, -25.409),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (4.497, 0.0, -15.846), 'head': (1.927, 0.0), 'right_clavicle': (22.181, 3.738),
-        'right_shoulder': (81.804, 17.042, 12.683), 'right_elbow': (25.614, 23.582),
-        'right_wrist': (3.465, -22.192),
+        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
+        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
+        'right_elbow': (25.614, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(17.6, {
         'spine_lumbar': (-2.139, -19.371, 6.931), 'spine_thoracic': (-11.435, -3.59, 7.834),
-        'neck': (8.345, 0.0, -14.042), 'head': (3.576, 0.0), 'right_clavicle': (10.289, 6.823),
-        'right_shoulder': (80.995, 7.802, 1.327), 'right_elbow': (21.243, 12.098),
-        'right_wrist': (-1.142, -29.938),
+        'neck': (5.829, -0.394, -13.915), 'head': (5.972, -0.014),
+        'right_clavicle': (10.289, 6.823), 'right_shoulder': (80.995, 7.802, 1.327),
+        'right_elbow': (21.243, 12.098), 'right_wrist': (-1.142, -29.938),
     })
     human.KeyJoints(17.7, {
         'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.315, -3.776, 8.847),
-        'neck': (5.264, 0.0, -16.772), 'head': (2.256, 0.0), 'right_clavicle': (4.162, 7.512),
+        'neck': (3.667, -0.476, -16.614), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
         'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.528, 7.241),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (1.858, -17.662, 8.555), 'spine_thoracic': (-9.032, -6.243, 8.322),
-        'neck': (4.483, 0.0, -17.037), 'head': (1.921, 0.0), 'right_clavicle': (3.007, 7.218),
+        'neck': (3.124, -0.491, -16.881), 'head': (3.285, -0.015), 'right_clavicle': (3.007, 7.218),
         'right_shoulder': (87.447, 6.871, -4.206), 'right_elbow': (23.065, 7.105),
         'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(17.9, {
         'spine_lumbar': (2.465, -19.861, 6.263), 'spine_thoracic': (-11.038, -9.465, 7.081),
-        'neck': (5.81, 0.0, -17.39), 'head': (2.49, 0.0), 'right_clavicle': (11.674, 5.33),
+        'neck': (4.045, -0.476, -17.217), 'head': (4.21, -0.015), 'right_clavicle': (11.674, 5.33),
         'right_shoulder': (82.6, 11.671, 3.035), 'right_elbow': (23.283, 14.166),
         'right_wrist': (-0.35, -28.479),
     })
     human.KeyJoints(18.0, {
         'spine_lumbar': (5.135, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.213),
-        'neck': (4.451, 0.0, -15.972), 'head': (1.907, 0.0), 'right_clavicle': (21.921, 3.741),
-        'right_shoulder': (81.863, 16.995, 12.458), 'right_elbow': (25.596, 23.374),
-        'right_wrist': (3.377, -22.382),
+        'neck': (3.099, -0.478, -15.818), 'head': (3.253, -0.015),
+        'right_clavicle': (21.921, 3.741), 'right_shoulder': (81.863, 16.995, 12.458),
+        'right_elbow': (25.596, 23.374), 'right_wrist': (3.377, -22.382),
     })
     human.KeyJoints(18.1, {
         'spine_lumbar': (0.085, -20.0, 4.686), 'spine_thoracic': (-11.517, -7.974, 6.593),
-        'neck': (7.265, 0.0, -13.775), 'head': (3.114, 0.0), 'right_clavicle': (17.565, 5.245),
+        'neck': (5.071, -0.407, -13.65), 'head': (5.212, -0.014), 'right_clavicle': (17.565, 5.245),
         'right_shoulder': (80.28, 11.935, 8.858), 'right_elbow': (23.55, 19.386),
         'right_wrist': (2.033, -25.94),
     })
     human.KeyJoints(18.2, {
         'spine_lumbar': (0.517, -17.998, 8.982), 'spine_thoracic': (-11.248, -1.905, 9.049),
-        'neck': (6.48, 0.0, -16.003), 'head': (2.777, 0.0), 'right_clavicle': (5.345, 7.671),
+        'neck': (4.517, -0.449, -15.852), 'head': (4.673, -0.014), 'right_clavicle': (5.345, 7.671),
         'right_shoulder': (84.314, 7.302, -3.624), 'right_elbow': (21.863, 7.613),
         'right_wrist': (-3.366, -29.918),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(18.4, {
         'spine_lumbar': (1.765, -18.836, 7.838), 'spine_thoracic': (-10.511, -7.657, 7.922),
-        'neck': (5.728, 0.0, -17.578), 'head': (2.455, 0.0), 'right_clavicle': (6.5, 6.409),
+        'neck': (3.988, -0.48, -17.406), 'head': (4.155, -0.015), 'right_clavicle': (6.5, 6.409),
         'right_shoulder': (84.503, 9.024, -1.799), 'right_elbow': (22.769, 9.464),
         'right_wrist': (-2.423, -29.977),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (4.303, -20.0, 4.451), 'spine_thoracic': (-11.549, -10.0, 6.386),
-        'neck': (4.884, 0.0, -16.301), 'head': (2.093, 0.0), 'right_clavicle': (19.242, 4.175),
-        'right_shoulder': (81.862, 15.493, 10.078), 'right_elbow': (24.876, 21.03),
-        'right_wrist': (2.484, -24.36),
+        'neck': (3.401, -0.476, -16.143), 'head': (3.557, -0.015),
+        'right_clavicle': (19.242, 4.175), 'right_shoulder': (81.862, 15.493, 10.078),
+        'right_elbow': (24.876, 21.03), 'right_wrist': (2.484, -24.36),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (4.5, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
-        'neck': (4.846, 0.0, -15.488), 'head': (2.077, 0.0), 'right_clavicle': (22.008, 3.857),
+        'neck': (3.374, -0.466, -15.34), 'head': (3.525, -0.015), 'right_clavicle': (22.008, 3.857),
         'right_shoulder': (81.546, 16.579, 12.634), 'right_elbow': (25.518, 23.454),
         'right_wrist': (3.445, -22.271),
     })
     human.KeyJoints(18.7, {
         'spine_lumbar': (-1.774, -18.953, 7.677), 'spine_thoracic': (-11.463, -2.536, 8.286),
-        'neck': (8.088, 0.0, -14.552), 'head': (3.466, 0.0), 'right_clavicle': (8.429, 7.186),
+        'neck': (5.647, -0.405, -14.419), 'head': (5.794, -0.014), 'right_clavicle': (8.429, 7.186),
         'right_shoulder': (81.769, 7.306, -0.727), 'right_elbow': (21.035, 10.198),
         'right_wrist': (-2.059, -29.994),
     })
     human.KeyJoints(18.8, {
         'spine_lumbar': (1.786, -17.772, 8.812), 'spine_thoracic': (-9.822, -4.644, 8.673),
-        'neck': (4.925, 0.0, -16.885), 'head': (2.111, 0.0), 'right_clavicle': (3.689, 7.419),
+        'neck': (3.431, -0.483, -16.727), 'head': (3.591, -0.015), 'right_clavicle': (3.689, 7.419),
         'right_shoulder': (86.735, 7.216, -4.177), 'right_elbow': (22.745, 7.161),
         'right_wrist': (-3.416, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (1.809, -17.814, 8.537), 'spine_thoracic': (-9.41, -6.342, 8.318),
-        'neck': (4.791, 0.0, -17.149), 'head': (2.053, 0.0), 'right_clavicle': (3.483, 7.135),
+        'neck': (3.338, -0.488, -16.989), 'head': (3.5, -0.015), 'right_clavicle': (3.483, 7.135),
         'right_shoulder': (86.862, 7.214, -4.005), 'right_elbow': (22.96, 7.304),
         'right_wrist': (-3.274, -30.0),
     })
     human.KeyJoints(19.0, {
         'spine_lumbar': (2.884, -19.985, 5.73), 'spine_thoracic': (-11.173, -9.802, 6.851),
-        'neck': (5.638, 0.0, -17.142), 'head': (2.416, 0.0), 'right_clavicle': (13.702, 5.002),
-        'right_shoulder': (82.226, 12.673, 4.948), 'right_elbow': (23.622, 16.026),
-        'right_wrist': (0.451, -27.548),
+        'neck': (3.926, -0.476, -16.972), 'head': (4.089, -0.015),
+        'right_clavicle': (13.702, 5.002), 'right_shoulder': (82.226, 12.673, 4.948),
+        'right_elbow': (23.622, 16.026), 'right_wrist': (0.451, -27.548),
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (5.202, -19.931, 3.868), 'spine_thoracic': (-11.814, -10.0, 6.205),
-        'neck': (4.418, 0.0, -15.946), 'head': (1.893, 0.0), 'right_clavicle': (22.137, 3.708),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.137, 3.708),
         'right_shoulder': (81.865, 17.117, 12.642), 'right_elbow': (25.649, 23.556),
         'right_wrist': (3.447, -22.216),
     })
     human.KeyJoints(19.2, {
         'spine_lumbar': (-1.248, -19.97, 5.34), 'spine_thoracic': (-11.441, -6.538, 6.937),
-        'neck': (7.953, 0.0, -13.588), 'head': (3.409, 0.0), 'right_clavicle': (15.101, 5.83),
+        'neck': (5.555, -0.394, -13.466), 'head': (5.695, -0.014), 'right_clavicle': (15.101, 5.83),
         'right_shoulder': (80.228, 10.169, 6.413), 'right_elbow': (22.575, 16.961),
         'right_wrist': (1.046, -27.717),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (1.066, -17.917, 9.05), 'spine_thoracic': (-11.02, -2.34, 9.074),
-        'neck': (6.008, 0.0, -16.342), 'head': (2.575, 0.0), 'right_clavicle': (4.875, 7.677),
+        'neck': (4.187, -0.46, -16.187), 'head': (4.344, -0.015), 'right_clavicle': (4.875, 7.677),
         'right_shoulder': (85.009, 7.385, -3.897), 'right_elbow': (22.129, 7.395),
         'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(19.5, {
         'spine_lumbar': (1.895, -19.244, 7.358), 'spine_thoracic': (-10.713, -8.332, 7.641),
-        'neck': (5.854, 0.0, -17.599), 'head': (2.509, 0.0), 'right_clavicle': (7.985, 6.055),
+        'neck': (4.076, -0.478, -17.425), 'head': (4.243, -0.015), 'right_clavicle': (7.985, 6.055),
         'right_shoulder': (83.792, 9.806, -0.434), 'right_elbow': (22.863, 10.792),
         'right_wrist': (-1.836, -29.738),
     })
     human.KeyJoints(19.6, {
         'spine_lumbar': (4.692, -20.0, 4.178), 'spine_thoracic': (-11.646, -10.0, 6.289),
-        'neck': (4.674, 0.0, -16.147), 'head': (2.003, 0.0), 'right_clavicle': (20.494, 3.967),
+        'neck': (3.254, -0.477, -15.99), 'head': (3.409, -0.015), 'right_clavicle': (20.494, 3.967),
         'right_shoulder': (81.856, 16.192, 11.213), 'right_elbow': (25.23, 22.143),
         'right_wrist': (2.908, -23.453),
     })
     human.KeyJoints(19.7, {
         'spine_lumbar': (3.339, -19.913, 3.926), 'spine_thoracic': (-11.736, -9.785, 6.219),
-        'neck': (5.512, 0.0, -14.924), 'head': (2.362, 0.0), 'right_clavicle': (21.228, 4.157),
+        'neck': (3.84, -0.449, -14.784), 'head': (3.988, -0.015), 'right_clavicle': (21.228, 4.157),
         'right_shoulder': (81.115, 15.494, 12.102), 'right_elbow': (25.18, 22.798),
         'right_wrist': (3.255, -22.861),
     })
     human.KeyJoints(19.8, {
         'spine_lumbar': (-1.087, -18.53, 8.294), 'spine_thoracic': (-11.459, -1.948, 8.668),
-        'neck': (7.632, 0.0, -15.092), 'head': (3.271, 0.0), 'right_clavicle': (7.02, 7.458),
+        'neck': (5.326, -0.419, -14.953), 'head': (5.476, -0.014), 'right_clavicle': (7.02, 7.458),
         'right_shoulder': (82.637, 7.192, -2.158), 'right_elbow': (21.104, 8.896),
         'right_wrist': (-2.709, -29.998),
     })
     human.KeyJoints(19.9, {
         'spine_lumbar': (1.855, -17.682, 8.676), 'spine_thoracic': (-9.317, -5.492, 8.486),
-        'neck': (4.609, 0.0, -16.947), 'head': (1.975, 0.0), 'right_clavicle': (3.221, 7.327),
+        'neck': (3.211, -0.488, -16.791), 'head': (3.372, -0.015), 'right_clavicle': (3.221, 7.327),
         'right_shoulder': (87.255, 6.963, -4.235), 'right_elbow': (22.943, 7.091),
         'right_wrist': (-3.372, -29.969),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (1.745, -18.077, 8.469), 'spine_thoracic': (-9.952, -6.561, 8.302),
-        'neck': (5.235, 0.0, -17.34), 'head': (2.244, 0.0), 'right_clavicle': (4.29, 6.977),
+        'neck': (3.646, -0.484, -17.174), 'head': (3.81, -0.015), 'right_clavicle': (4.29, 6.977),
         'right_shoulder': (85.972, 7.768, -3.597), 'right_elbow': (22.817, 7.708),
         'right_wrist': (-3.157, -30.0),
     })
     human.KeyJoints(20.1, {
         'spine_lumbar': (3.353, -20.0, 5.245), 'spine_thoracic': (-11.305, -9.974, 6.669),
-        'neck': (5.403, 0.0, -16.831), 'head': (2.315, 0.0), 'right_clavicle': (15.731, 4.706),
-        'right_shoulder': (82.004, 13.67, 6.842), 'right_elbow': (24.019, 17.869),
-        'right_wrist': (1.225, -26.511),
+        'neck': (3.762, -0.475, -16.666), 'head': (3.923, -0.015),
+        'right_clavicle': (15.731, 4.706), 'right_shoulder': (82.004, 13.67, 6.842),
+        'right_elbow': (24.019, 17.869), 'right_wrist': (1.225, -26.511),
     })
     human.KeyJoints(20.2, {
         'spine_lumbar': (5.212, -19.928, 3.862), 'spine_thoracic': (-11.819, -10.0, 6.204),
-        'neck': (4.414, 0.0, -15.942), 'head': (1.892, 0.0), 'right_clavicle': (22.17, 3.703),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015), 'right_clavicle': (22.17, 3.703),
         'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
         'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(20.3, {
         'spine_lumbar': (-1.958, -19.793, 6.103), 'spine_thoracic': (-11.415, -5.003, 7.352),
-        'neck': (8.292, 0.0, -13.731), 'head': (3.554, 0.0), 'right_clavicle': (12.599, 6.356),
+        'neck': (5.793, -0.39, -13.608), 'head': (5.934, -0.014), 'right_clavicle': (12.599, 6.356),
         'right_shoulder': (80.406, 8.772, 3.809), 'right_elbow': (21.777, 14.446),
         'right_wrist': (-0.055, -29.098),
     })
     human.KeyJoints(20.4, {
         'spine_lumbar': (1.444, -17.888, 9.004), 'spine_thoracic': (-10.71, -2.99, 8.982),
-        'neck': (5.606, 0.0, -16.576), 'head': (2.403, 0.0), 'right_clavicle': (4.54, 7.605),
+        'neck': (3.905, -0.469, -16.419), 'head': (4.065, -0.015), 'right_clavicle': (4.54, 7.605),
         'right_shoulder': (85.578, 7.389, -4.012), 'right_elbow': (22.326, 7.314),
         'right_wrist': (-3.445, -29.89),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.892, -6.213, 8.323),
-        'neck': (4.37, 0.0, -16.994), 'head': (1.873, 0.0), 'right_clavicle': (2.836, 7.247),
+        'neck': (3.045, -0.492, -16.839), 'head': (3.205, -0.015), 'right_clavicle': (2.836, 7.247),
         'right_shoulder': (87.663, 6.745, -4.272), 'right_elbow': (23.104, 7.039),
         'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(20.6, {
         'spine_lumbar': (2.125, -19.603, 6.824), 'spine_thoracic': (-10.886, -8.958, 7.354),
-        'neck': (5.887, 0.0, -17.544), 'head': (2.523, 0.0), 'right_clavicle': (9.718, 5.689),
+        'neck': (4.098, -0.477, -17.37), 'head': (4.265, -0.015), 'right_clavicle': (9.718, 5.689),
         'right_shoulder': (83.14, 10.693, 1.187), 'right_elbow': (23.025, 12.369),
         'right_wrist': (-1.138, -29.235),
     })
     human.KeyJoints(20.7, {
         'spine_lumbar': (4.968, -19.973, 4.003), 'spine_thoracic': (-11.732, -10.0, 6.238),
-        'neck': (4.533, 0.0, -16.04), 'head': (1.943, 0.0), 'right_clavicle': (21.387, 3.825),
-        'right_shoulder': (81.859, 16.693, 11.997), 'right_elbow': (25.462, 22.917),
-        'right_wrist': (3.203, -22.788),
+        'neck': (3.156, -0.478, -15.885), 'head': (3.311, -0.015),
+        'right_clavicle': (21.387, 3.825), 'right_shoulder': (81.859, 16.693, 11.997),
+        'right_elbow': (25.462, 22.917), 'right_wrist': (3.203, -22.788),
     })
     human.KeyJoints(20.8, {
         'spine_lumbar': (1.759, -19.988, 4.195), 'spine_thoracic': (-11.629, -9.116, 6.341),
-        'neck': (6.38, 0.0, -14.299), 'head': (2.734, 0.0), 'right_clavicle': (19.718, 4.644),
-        'right_shoulder': (80.639, 13.855, 10.85), 'right_elbow': (24.503, 21.434),
-        'right_wrist': (2.796, -24.144),
+        'neck': (4.449, -0.428, -14.167), 'head': (4.593, -0.014),
+        'right_clavicle': (19.718, 4.644), 'right_shoulder': (80.639, 13.855, 10.85),
+        'right_elbow': (24.503, 21.434), 'right_wrist': (2.796, -24.144),
     })
     human.KeyJoints(20.9, {
         'spine_lumbar': (-0.232, -18.167, 8.746), 'spine_thoracic': (-11.396, -1.681, 8.942),
-        'neck': (7.039, 0.0, -15.56), 'head': (3.017, 0.0), 'right_clavicle': (5.999, 7.633),
+        'neck': (4.909, -0.435, -15.415), 'head': (5.062, -0.014), 'right_clavicle': (5.999, 7.633),
         'right_shoulder': (83.513, 7.179, -3.081), 'right_elbow': (21.538, 8.07),
         'right_wrist': (-3.128, -29.985),
     })
     human.KeyJoints(21.0, {
         'spine_lumbar': (1.877, -17.614, 8.572), 'spine_thoracic': (-8.939, -6.116, 8.344),
-        'neck': (4.393, 0.0, -16.985), 'head': (1.883, 0.0), 'right_clavicle': (2.875, 7.26),
+        'neck': (3.061, -0.492, -16.83), 'head': (3.221, -0.015), 'right_clavicle': (2.875, 7.26),
         'right_shoulder': (87.624, 6.765, -4.271), 'right_elbow': (23.085, 7.042),
         'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (1.738, -18.428, 8.265), 'spine_thoracic': (-10.286, -6.994, 8.198),
-        'neck': (5.522, 0.0, -17.556), 'head': (2.367, 0.0), 'right_clavicle': (5.293, 6.734),
+        'neck': (3.846, -0.482, -17.385), 'head': (4.012, -0.015), 'right_clavicle': (5.293, 6.734),
         'right_shoulder': (85.196, 8.37, -2.886), 'right_elbow': (22.768, 8.405),
         'right_wrist': (-2.896, -30.0),
     })
     human.KeyJoints(21.2, {
         'spine_lumbar': (3.837, -20.0, 4.816), 'spine_thoracic': (-11.433, -10.0, 6.519),
-        'neck': (5.141, 0.0, -16.536), 'head': (2.203, 0.0), 'right_clavicle': (17.616, 4.432),
-        'right_shoulder': (81.897, 14.624, 8.584), 'right_elbow': (24.448, 19.57),
-        'right_wrist': (1.914, -25.427),
+        'neck': (3.579, -0.475, -16.375), 'head': (3.738, -0.015),
+        'right_clavicle': (17.616, 4.432), 'right_shoulder': (81.897, 14.624, 8.584),
+        'right_elbow': (24.448, 19.57), 'right_wrist': (1.914, -25.427),
     })
     human.KeyJoints(21.3, {
         'spine_lumbar': (5.086, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (4.495, 0.0, -15.849), 'head': (1.926, 0.0), 'right_clavicle': (22.181, 3.737),
+        'neck': (3.13, -0.476, -15.697), 'head': (3.283, -0.015), 'right_clavicle': (22.181, 3.737),
         'right_shoulder': (81.806, 17.045, 12.683), 'right_elbow': (25.615, 23.582),
         'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(21.4, {
         'spine_lumbar': (-2.139, -19.378, 6.918), 'spine_thoracic': (-11.435, -3.61, 7.826),
-        'neck': (8.345, 0.0, -14.035), 'head': (3.577, 0.0), 'right_clavicle': (10.324, 6.817),
+        'neck': (5.83, -0.394, -13.909), 'head': (5.972, -0.014), 'right_clavicle': (10.324, 6.817),
         'right_shoulder': (80.984, 7.813, 1.365), 'right_elbow': (21.248, 12.133),
         'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(21.5, {
         'spine_lumbar': (1.66, -17.85, 8.931), 'spine_thoracic': (-10.322, -3.762, 8.85),
-        'neck': (5.27, 0.0, -16.77), 'head': (2.258, 0.0), 'right_clavicle': (4.17, 7.514),
+        'neck': (3.671, -0.476, -16.612), 'head': (3.831, -0.015), 'right_clavicle': (4.17, 7.514),
         'right_shoulder': (86.144, 7.386, -4.099), 'right_elbow': (22.525, 7.242),
         'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (1.859, -17.66, 8.555), 'spine_thoracic': (-9.028, -6.242, 8.322),
-        'neck': (4.48, 0.0, -17.036), 'head': (1.92, 0.0), 'right_clavicle': (3.002, 7.219),
+        'neck': (3.122, -0.491, -16.879), 'head': (3.282, -0.015), 'right_clavicle': (3.002, 7.219),
         'right_shoulder': (87.453, 6.867, -4.208), 'right_elbow': (23.066, 7.103),
         'right_wrist': (-3.32, -30.0),
     })
     human.KeyJoints(21.7, {
         'spine_lumbar': (2.459, -19.858, 6.273), 'spine_thoracic': (-11.035, -9.458, 7.085),
-        'neck': (5.812, 0.0, -17.393), 'head': (2.491, 0.0), 'right_clavicle': (11.641, 5.336),
-        'right_shoulder': (82.608, 11.655, 3.004), 'right_elbow': (23.278, 14.135),
-        'right_wrist': (-0.363, -28.493),
+        'neck': (4.046, -0.476, -17.221), 'head': (4.212, -0.015),
+        'right_clavicle': (11.641, 5.336), 'right_shoulder': (82.608, 11.655, 3.004),
+        'right_elbow': (23.278, 14.135), 'right_wrist': (-0.363, -28.493),
     })
     human.KeyJoints(21.8, {
         'spine_lumbar': (5.133, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (4.452, 0.0, -15.973), 'head': (1.908, 0.0), 'right_clavicle': (21.915, 3.742),
+        'neck': (3.1, -0.478, -15.819), 'head': (3.253, -0.015), 'right_clavicle': (21.915, 3.742),
         'right_shoulder': (81.863, 16.992, 12.453), 'right_elbow': (25.594, 23.368),
         'right_wrist': (3.375, -22.387),
     })
     human.KeyJoints(21.9, {
         'spine_lumbar': (0.112, -20.0, 4.676), 'spine_thoracic': (-11.519, -7.997, 6.588),
-        'neck': (7.251, 0.0, -13.781), 'head': (3.108, 0.0), 'right_clavicle': (17.605, 5.234),
-        'right_shoulder': (80.284, 11.967, 8.897), 'right_elbow': (23.567, 19.425),
-        'right_wrist': (2.048, -25.907),
+        'neck': (5.061, -0.408, -13.656), 'head': (5.202, -0.014),
+        'right_clavicle': (17.605, 5.234), 'right_shoulder': (80.284, 11.967, 8.897),
+        'right_elbow': (23.567, 19.425), 'right_wrist': (2.048, -25.907),
     })
     human.KeyJoints(22.0, {
         'spine_lumbar': (0.506, -18.001, 8.979), 'spine_thoracic': (-11.251, -1.898, 9.048),
-        'neck': (6.489, 0.0, -15.996), 'head': (2.781, 0.0), 'right_clavicle': (5.354, 7.671),
+        'neck': (4.523, -0.449, -15.845), 'head': (4.679, -0.014), 'right_clavicle': (5.354, 7.671),
         'right_shoulder': (84.302, 7.299, -3.617), 'right_elbow': (21.858, 7.619),
         'right_wrist': (-3.363, -29.92),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (4.361, 0.0, -16.991), 'head': (1.869, 0.0), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (1.764, -18.829, 7.845), 'spine_thoracic': (-10.507, -7.646, 7.927),
-        'neck': (5.725, 0.0, -17.578), 'head': (2.454, 0.0), 'right_clavicle': (6.478, 6.415),
+        'neck': (3.986, -0.48, -17.405), 'head': (4.153, -0.015), 'right_clavicle': (6.478, 6.415),
         'right_shoulder': (84.515, 9.012, -1.819), 'right_elbow': (22.768, 9.444),
         'right_wrist': (-2.432, -29.979),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (4.296, -20.0, 4.456), 'spine_thoracic': (-11.547, -10.0, 6.389),
-        'neck': (4.888, 0.0, -16.304), 'head': (2.095, 0.0), 'right_clavicle': (19.218, 4.18),
+        'neck': (3.403, -0.476, -16.146), 'head': (3.56, -0.015), 'right_clavicle': (19.218, 4.18),
         'right_shoulder': (81.862, 15.48, 10.056), 'right_elbow': (24.869, 21.009),
         'right_wrist': (2.476, -24.377),
     })
     human.KeyJoints(22.4, {
         'spine_lumbar': (4.513, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
-        'neck': (4.838, 0.0, -15.495), 'head': (2.073, 0.0), 'right_clavicle': (22.013, 3.855),
+        'neck': (3.369, -0.466, -15.348), 'head': (3.52, -0.015), 'right_clavicle': (22.013, 3.855),
         'right_shoulder': (81.551, 16.59, 12.635), 'right_elbow': (25.521, 23.457),
         'right_wrist': (3.446, -22.268),
     })
     human.KeyJoints(22.5, {
         'spine_lumbar': (-1.785, -18.96, 7.665), 'spine_thoracic': (-11.463, -2.551, 8.279),
-        'neck': (8.095, 0.0, -14.542), 'head': (3.469, 0.0), 'right_clavicle': (8.457, 7.181),
+        'neck': (5.652, -0.405, -14.409), 'head': (5.799, -0.014), 'right_clavicle': (8.457, 7.181),
         'right_shoulder': (81.755, 7.312, -0.696), 'right_elbow': (21.037, 10.226),
         'right_wrist': (-2.045, -29.993),
     })
     human.KeyJoints(22.6, {
         'spine_lumbar': (1.785, -17.773, 8.814), 'spine_thoracic': (-9.831, -4.629, 8.677),
-        'neck': (4.93, 0.0, -16.884), 'head': (2.113, 0.0), 'right_clavicle': (3.698, 7.42),
+        'neck': (3.435, -0.483, -16.726), 'head': (3.595, -0.015), 'right_clavicle': (3.698, 7.42),
         'right_shoulder': (86.726, 7.22, -4.175), 'right_elbow': (22.741, 7.162),
         'right_wrist': (-3.417, -29.934),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (1.812, -17.804, 8.539), 'spine_thoracic': (-9.386, -6.334, 8.319),
-        'neck': (4.771, 0.0, -17.142), 'head': (2.045, 0.0), 'right_clavicle': (3.452, 7.14),
+        'neck': (3.324, -0.488, -16.982), 'head': (3.486, -0.015), 'right_clavicle': (3.452, 7.14),
         'right_shoulder': (86.9, 7.191, -4.019), 'right_elbow': (22.966, 7.29),
         'right_wrist': (-3.278, -30.0),
     })
     human.KeyJoints(22.8, {
         'spine_lumbar': (2.846, -19.982, 5.774), 'spine_thoracic': (-11.161, -9.78, 6.868),
-        'neck': (5.656, 0.0, -17.168), 'head': (2.424, 0.0), 'right_clavicle': (13.528, 5.028),
-        'right_shoulder': (82.251, 12.587, 4.785), 'right_elbow': (23.59, 15.867),
-        'right_wrist': (0.384, -27.632),
+        'neck': (3.938, -0.476, -16.998), 'head': (4.102, -0.015),
+        'right_clavicle': (13.528, 5.028), 'right_shoulder': (82.251, 12.587, 4.785),
+        'right_elbow': (23.59, 15.867), 'right_wrist': (0.384, -27.632),
     })
     human.KeyJoints(22.9, {
         'spine_lumbar': (5.198, -19.932, 3.87), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (4.42, 0.0, -15.948), 'head': (1.894, 0.0), 'right_clavicle': (22.123, 3.71),
+        'neck': (3.078, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.123, 3.71),
         'right_shoulder': (81.865, 17.11, 12.631), 'right_elbow': (25.645, 23.545),
         'right_wrist': (3.443, -22.227),
     })
     human.KeyJoints(23.0, {
         'spine_lumbar': (0.695, -18.274, 5.478), 'spine_thoracic': (-11.51, -5.916, 6.981),
-        'neck': (6.655, 0.0, -12.589), 'head': (2.852, 0.0), 'right_clavicle': (15.303, 5.732),
+        'neck': (4.645, -0.4, -12.48), 'head': (4.778, -0.014), 'right_clavicle': (15.303, 5.732),
         'right_shoulder': (80.627, 10.849, 8.679), 'right_elbow': (27.109, 18.721),
         'right_wrist': (1.827, -27.563),
     })
     human.KeyJoints(23.1, {
         'spine_lumbar': (5.927, -14.348, 10.033), 'spine_thoracic': (-10.657, -0.641, 9.849),
-        'neck': (2.417, 0.0, -14.013), 'head': (1.036, 0.0), 'right_clavicle': (4.844, 8.271),
+        'neck': (1.686, -0.483, -13.903), 'head': (1.823, -0.015), 'right_clavicle': (4.844, 8.271),
         'right_shoulder': (85.636, 7.932, 1.412), 'right_elbow': (32.993, 11.258),
         'right_wrist': (-1.598, -29.795),
     })
@@ -1250,29 +1436,29 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.456, 0.0, -14.888), 'head': (0.195, 0.0), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.248408, duration=0.4)
-    human.KeyJoints(23.3, {'neck': (1.984, 0.0, -16.085), 'head': (0.85, 0.0)})
-    human.KeyJoints(23.4, {'neck': (11.24, 0.0, -23.342), 'head': (4.817, 0.0)})
+    human.KeyJoints(23.3, {'neck': (1.903, -0.592, -16.234), 'head': (1.122, -0.069)})
+    human.KeyJoints(23.4, {'neck': (11.488, -0.993, -23.48), 'head': (5.141, -0.393)})
     human.KeyJoints(23.5, {
-        'neck': (23.537, 0.0, -32.982), 'head': (10.087, 0.0),
+        'neck': (24.221, -1.526, -33.106), 'head': (10.48, -0.823),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
-        'neck': (32.593, 0.0, -40.082), 'head': (13.969, 0.0),
+        'neck': (33.599, -1.919, -40.196), 'head': (14.413, -1.139),
         'right_shoulder': (87.257, 7.579, 0.989), 'right_elbow': (34.444, 10.924),
         'right_wrist': (-1.493, -29.466),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.648408, duration=10.483707)
     human.KeyJoints(23.7, {
-        'neck': (33.946, 0.0, -41.142), 'head': (14.548, 0.0),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187),
         'right_shoulder': (79.576, 9.299, -0.303), 'right_elbow': (35.153, 10.334),
         'right_wrist': (-1.918, -26.427),
     })
@@ -1294,456 +1480,639 @@ def remove_access_panel_cad():
         'right_wrist': (-6.457, -3.791),
     })
     human.KeyJoints(24.2, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'right_clavicle': (2.794, 7.882),
-        'right_shoulder': (17.513, 33.356, -16.785), 'right_elbow': (37.585, 2.811),
-        'right_wrist': (-6.586, -5.14),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (17.513, 33.356, -16.785),
+        'right_elbow': (37.585, 2.811), 'right_wrist': (-6.586, -5.14),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.216071, duration=0.072)
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (6.962, -13.822, 9.604), 'spine_thoracic': (-8.557, -4.49, 9.157),
-        'neck': (33.896, 0.0, -41.152), 'head': (14.527, 0.0), 'right_clavicle': (2.72, 7.941),
-        'right_shoulder': (17.604, 33.544, -16.772), 'right_elbow': (37.499, 2.844),
-        'right_wrist': (-6.563, -4.852),
+        'spine_lumbar': (6.95, -13.858, 9.605), 'spine_thoracic': (-8.555, -4.486, 9.156),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.815, 7.883),
+        'right_shoulder': (17.578, 33.398, -16.747), 'right_elbow': (37.587, 2.841),
+        'right_wrist': (-6.575, -5.092),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (7.723, -11.476, 9.76), 'spine_thoracic': (-8.704, -4.19, 9.291),
-        'neck': (32.953, 0.0, -41.433), 'head': (14.123, 0.0), 'right_clavicle': (6.129, 9.157),
-        'right_shoulder': (16.103, 38.917, -10.822), 'right_elbow': (34.675, 8.981),
-        'right_wrist': (-6.273, 3.321),
+        'spine_lumbar': (7.85, -11.603, 9.292), 'spine_thoracic': (-8.424, -5.683, 9.156),
+        'neck': (34.436, -2.178, -40.66), 'head': (14.543, -1.248),
+        'right_clavicle': (5.767, 7.663), 'right_shoulder': (17.505, 33.499, -12.982),
+        'right_elbow': (37.858, 6.187), 'right_wrist': (-6.229, -2.684),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (9.645, -5.703, 10.196), 'spine_thoracic': (-9.523, -3.797, 9.695),
-        'neck': (30.878, 0.0, -41.472), 'head': (13.233, 0.0), 'right_clavicle': (19.958, 12.221),
-        'right_shoulder': (13.005, 45.347, 3.094), 'right_elbow': (38.386, 25.674),
-        'right_wrist': (-9.006, 8.391),
+        'spine_lumbar': (13.236, -5.947, 8.625), 'spine_thoracic': (-7.0, -9.452, 9.643),
+        'neck': (33.108, -3.476, -42.091), 'head': (13.161, -1.519),
+        'right_clavicle': (16.324, 8.364), 'right_shoulder': (15.213, 41.671, -2.096),
+        'right_elbow': (42.214, 19.308), 'right_wrist': (-6.725, 10.464),
     })
     human.KeyJoints(24.6, {
-        'right_clavicle': (22.486, 8.92), 'right_shoulder': (13.207, 41.127, 5.112),
-        'right_elbow': (41.678, 26.101), 'right_wrist': (-8.694, 6.755),
+        'spine_lumbar': (13.883, -8.656, 8.102), 'spine_thoracic': (-5.86, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.221), 'head': (13.465, -1.512),
+        'right_clavicle': (19.692, 8.664), 'right_shoulder': (13.482, 43.445, 1.175),
+        'right_elbow': (41.341, 23.505), 'right_wrist': (-7.065, 10.048),
     })
     human.KeyJoints(24.7, {
-        'right_clavicle': (4.832, 6.346), 'right_shoulder': (21.092, 39.239, -8.736),
-        'right_elbow': (36.738, 7.712), 'right_wrist': (-3.753, 18.86),
+        'spine_lumbar': (8.821, -1.252, 9.094), 'spine_thoracic': (-9.526, -4.384, 9.192),
+        'neck': (32.007, -3.055, -38.179), 'head': (12.616, -1.53),
+        'right_clavicle': (13.193, 6.869), 'right_shoulder': (18.662, 35.256, -2.844),
+        'right_elbow': (43.602, 15.007), 'right_wrist': (-5.194, 11.491),
     })
     human.KeyJoints(24.8, {
-        'right_clavicle': (-1.314, 11.734), 'right_shoulder': (21.324, 45.102, -15.594),
-        'right_elbow': (34.365, 4.962), 'right_wrist': (-4.965, 19.189),
+        'spine_lumbar': (10.751, -0.311, 10.815), 'spine_thoracic': (-10.613, -2.114, 10.101),
+        'neck': (32.277, -3.82, -41.178), 'head': (12.384, -1.57), 'right_clavicle': (7.446, 7.998),
+        'right_shoulder': (20.729, 37.107, -11.16), 'right_elbow': (44.467, 7.989),
+        'right_wrist': (-5.74, 10.509),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'right_clavicle': (-0.809, 12.018), 'right_shoulder': (20.303, 46.107, -15.034),
-        'right_elbow': (34.303, 6.165), 'right_wrist': (-5.176, 19.45),
+        'spine_lumbar': (11.094, -1.247, 10.772), 'spine_thoracic': (-10.114, -2.493, 10.04),
+        'neck': (32.397, -3.903, -41.735), 'head': (12.43, -1.575),
+        'right_clavicle': (6.406, 8.442), 'right_shoulder': (19.856, 38.468, -12.4),
+        'right_elbow': (45.064, 7.579), 'right_wrist': (-6.163, 10.992),
     })
     human.KeyJoints(25.0, {
-        'right_clavicle': (12.841, 12.208), 'right_shoulder': (14.506, 47.341, -2.351),
-        'right_elbow': (35.181, 19.628), 'right_wrist': (-7.635, 14.901),
+        'spine_lumbar': (12.883, -2.782, 9.389), 'spine_thoracic': (-8.334, -7.662, 9.834),
+        'neck': (32.56, -3.686, -41.495), 'head': (12.682, -1.565),
+        'right_clavicle': (13.865, 8.21), 'right_shoulder': (17.211, 40.624, -4.646),
+        'right_elbow': (43.57, 16.031), 'right_wrist': (-6.354, 11.962),
     })
     human.KeyJoints(25.1, {
-        'right_clavicle': (22.149, 12.108), 'right_shoulder': (13.147, 44.214, 4.813),
-        'right_elbow': (38.876, 27.024), 'right_wrist': (-8.932, 6.675),
+        'spine_lumbar': (13.883, -8.501, 8.118), 'spine_thoracic': (-5.908, -10.0, 9.675),
+        'neck': (33.509, -3.508, -43.169), 'head': (13.441, -1.514),
+        'right_clavicle': (19.517, 8.663), 'right_shoulder': (13.543, 43.427, 1.001),
+        'right_elbow': (41.433, 23.317), 'right_wrist': (-7.063, 10.152),
     })
     human.KeyJoints(25.2, {
-        'right_clavicle': (13.636, 4.892), 'right_shoulder': (16.289, 38.708, -1.25),
-        'right_elbow': (40.646, 16.362), 'right_wrist': (-5.974, 14.898),
+        'spine_lumbar': (10.434, -5.311, 8.261), 'spine_thoracic': (-7.409, -7.848, 9.2),
+        'neck': (32.61, -3.054, -39.644), 'head': (13.054, -1.518),
+        'right_clavicle': (16.909, 7.708), 'right_shoulder': (15.414, 38.95, 0.531),
+        'right_elbow': (42.954, 20.334), 'right_wrist': (-6.107, 11.66),
     })
     human.KeyJoints(25.3, {
-        'right_clavicle': (0.348, 10.109), 'right_shoulder': (22.578, 42.946, -13.357),
-        'right_elbow': (33.868, 4.955), 'right_wrist': (-3.817, 19.618),
+        'spine_lumbar': (9.887, 0.951, 10.638), 'spine_thoracic': (-11.124, -1.864, 9.995),
+        'neck': (32.058, -3.574, -39.874), 'head': (12.356, -1.556),
+        'right_clavicle': (9.202, 7.237), 'right_shoulder': (21.586, 34.818, -8.599),
+        'right_elbow': (43.642, 9.18), 'right_wrist': (-5.061, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
-        'right_clavicle': (-1.974, 12.186), 'right_shoulder': (20.44, 45.751, -16.63),
-        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.617, 18.645),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
+        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
+        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(25.5, {
-        'right_clavicle': (5.063, 12.229), 'right_shoulder': (17.271, 48.07, -8.876),
-        'right_elbow': (33.111, 12.609), 'right_wrist': (-6.021, 19.546),
+        'spine_lumbar': (11.875, -1.092, 10.176), 'spine_thoracic': (-9.589, -4.844, 9.959),
+        'neck': (32.315, -3.784, -41.168), 'head': (12.435, -1.569),
+        'right_clavicle': (10.032, 8.191), 'right_shoulder': (19.117, 38.865, -8.464),
+        'right_elbow': (44.34, 11.434), 'right_wrist': (-6.029, 11.586),
     })
     human.KeyJoints(25.6, {
-        'right_clavicle': (20.771, 12.194), 'right_shoulder': (13.026, 44.944, 3.728),
-        'right_elbow': (38.602, 26.21), 'right_wrist': (-8.996, 7.737),
+        'spine_lumbar': (13.773, -6.772, 8.382), 'spine_thoracic': (-6.508, -9.907, 9.664),
+        'neck': (33.228, -3.543, -42.611), 'head': (13.223, -1.526),
+        'right_clavicle': (17.968, 8.56), 'right_shoulder': (14.403, 42.92, -0.549),
+        'right_elbow': (42.18, 21.419), 'right_wrist': (-6.935, 10.997),
     })
     human.KeyJoints(25.7, {
-        'right_clavicle': (21.765, 8.087), 'right_shoulder': (13.376, 40.557, 4.619),
-        'right_elbow': (42.032, 25.172), 'right_wrist': (-8.458, 7.598),
+        'spine_lumbar': (13.313, -8.657, 8.04), 'spine_thoracic': (-5.876, -9.999, 9.602),
+        'neck': (33.506, -3.38, -42.684), 'head': (13.472, -1.486),
+        'right_clavicle': (19.627, 8.568), 'right_shoulder': (13.476, 42.78, 1.599),
+        'right_elbow': (41.424, 23.592), 'right_wrist': (-6.942, 10.104),
     })
     human.KeyJoints(25.8, {
-        'right_clavicle': (3.547, 7.128), 'right_shoulder': (21.837, 39.843, -9.98),
-        'right_elbow': (35.91, 6.596), 'right_wrist': (-3.55, 19.148),
+        'spine_lumbar': (8.769, 0.334, 9.75), 'spine_thoracic': (-10.521, -2.794, 9.437),
+        'neck': (31.919, -3.191, -38.364), 'head': (12.47, -1.536),
+        'right_clavicle': (11.272, 6.734), 'right_shoulder': (20.387, 34.061, -5.189),
+        'right_elbow': (43.537, 12.088), 'right_wrist': (-4.885, 10.702),
     })
     human.KeyJoints(25.9, {
-        'right_clavicle': (-1.697, 12.006), 'right_shoulder': (20.828, 45.487, -16.187),
-        'right_elbow': (34.928, 5.021), 'right_wrist': (-5.334, 18.883),
+        'spine_lumbar': (10.953, -0.997, 10.821), 'spine_thoracic': (-10.312, -2.218, 10.072),
+        'neck': (32.373, -3.887, -41.625), 'right_clavicle': (6.559, 8.307),
+        'right_shoulder': (20.184, 38.041, -12.232), 'right_elbow': (44.907, 7.506),
+        'right_wrist': (-6.048, 10.796),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'right_clavicle': (0.152, 12.003), 'right_shoulder': (19.987, 46.541, -13.831),
-        'right_elbow': (33.76, 7.228), 'right_wrist': (-5.126, 19.826),
+        'spine_lumbar': (11.159, -0.95, 10.685), 'spine_thoracic': (-10.114, -2.849, 10.033),
+        'neck': (32.34, -3.868, -41.485), 'head': (12.406, -1.573), 'right_clavicle': (7.1, 8.349),
+        'right_shoulder': (19.888, 38.253, -11.568), 'right_elbow': (44.856, 8.213),
+        'right_wrist': (-6.038, 11.023),
     })
     human.KeyJoints(26.1, {
-        'right_clavicle': (15.34, 12.203), 'right_shoulder': (13.825, 46.751, -0.417),
-        'right_elbow': (36.303, 21.807), 'right_wrist': (-8.205, 12.723),
+        'spine_lumbar': (13.168, -3.679, 9.107), 'spine_thoracic': (-7.851, -8.484, 9.788),
+        'neck': (32.704, -3.642, -41.727), 'head': (12.819, -1.564),
+        'right_clavicle': (15.102, 8.271), 'right_shoulder': (16.471, 41.256, -3.417),
+        'right_elbow': (43.227, 17.583), 'right_wrist': (-6.498, 11.857),
     })
     human.KeyJoints(26.2, {
-        'right_clavicle': (22.421, 11.855), 'right_shoulder': (13.223, 43.821, 5.032),
-        'right_elbow': (39.041, 27.059), 'right_wrist': (-8.857, 6.517),
+        'spine_lumbar': (13.883, -8.637, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
+        'neck': (33.534, -3.504, -43.215), 'head': (13.462, -1.512),
+        'right_clavicle': (19.665, 8.665), 'right_shoulder': (13.489, 43.443, 1.15),
+        'right_elbow': (41.356, 23.478), 'right_wrist': (-7.065, 10.064),
     })
     human.KeyJoints(26.3, {
-        'right_clavicle': (10.499, 4.928), 'right_shoulder': (17.847, 38.576, -3.739),
-        'right_elbow': (39.502, 13.187), 'right_wrist': (-5.087, 16.773),
+        'spine_lumbar': (9.569, -3.514, 8.546), 'spine_thoracic': (-8.296, -6.418, 9.139),
+        'neck': (32.286, -3.023, -38.789), 'head': (12.848, -1.529),
+        'right_clavicle': (15.409, 7.307), 'right_shoulder': (16.708, 37.32, -0.681),
+        'right_elbow': (43.383, 18.228), 'right_wrist': (-5.708, 11.825),
     })
     human.KeyJoints(26.4, {
-        'right_clavicle': (-0.217, 10.773), 'right_shoulder': (22.276, 43.803, -14.052),
-        'right_elbow': (33.748, 4.908), 'right_wrist': (-4.143, 19.588),
+        'spine_lumbar': (10.243, 0.661, 10.754), 'spine_thoracic': (-11.014, -1.93, 10.08),
+        'neck': (32.129, -3.673, -40.357), 'head': (12.353, -1.562),
+        'right_clavicle': (8.695, 7.479), 'right_shoulder': (21.411, 35.526, -9.426),
+        'right_elbow': (43.852, 8.774), 'right_wrist': (-5.257, 10.123),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
-        'right_clavicle': (-1.878, 12.169), 'right_shoulder': (20.439, 45.775, -16.495),
-        'right_elbow': (35.285, 5.159), 'right_wrist': (-5.574, 18.718),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
+        'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(26.6, {
-        'right_clavicle': (7.496, 12.241), 'right_shoulder': (16.276, 48.084, -6.732),
-        'right_elbow': (33.453, 14.887), 'right_wrist': (-6.498, 18.516),
+        'spine_lumbar': (12.219, -1.486, 9.936), 'spine_thoracic': (-9.222, -5.755, 9.921),
+        'neck': (32.362, -3.761, -41.219), 'head': (12.485, -1.568),
+        'right_clavicle': (11.246, 8.176), 'right_shoulder': (18.562, 39.4, -7.252),
+        'right_elbow': (44.139, 12.867), 'right_wrist': (-6.116, 11.805),
     })
     human.KeyJoints(26.7, {
-        'right_clavicle': (21.701, 12.141), 'right_shoulder': (13.081, 44.459, 4.457),
-        'right_elbow': (38.798, 26.778), 'right_wrist': (-8.973, 7.005),
+        'spine_lumbar': (13.854, -7.597, 8.237), 'spine_thoracic': (-6.207, -10.0, 9.65),
+        'neck': (33.357, -3.528, -42.867), 'head': (13.321, -1.52),
+        'right_clavicle': (18.621, 8.627), 'right_shoulder': (13.952, 43.233, 0.102),
+        'right_elbow': (41.883, 22.283), 'right_wrist': (-7.019, 10.664),
     })
     human.KeyJoints(26.8, {
-        'right_clavicle': (19.725, 6.604), 'right_shoulder': (13.944, 39.673, 3.204),
-        'right_elbow': (42.062, 22.772), 'right_wrist': (-7.807, 9.783),
+        'spine_lumbar': (12.51, -8.175, 8.005), 'spine_thoracic': (-6.088, -9.795, 9.468),
+        'neck': (33.346, -3.244, -41.821), 'head': (13.404, -1.467),
+        'right_clavicle': (19.107, 8.402), 'right_shoulder': (13.694, 41.832, 1.695),
+        'right_elbow': (41.787, 23.159), 'right_wrist': (-6.762, 10.478),
     })
     human.KeyJoints(26.9, {
-        'right_clavicle': (2.161, 8.213), 'right_shoulder': (22.374, 40.819, -11.378),
-        'right_elbow': (34.926, 5.647), 'right_wrist': (-3.518, 19.424),
+        'spine_lumbar': (9.056, 0.914, 10.135), 'spine_thoracic': (-10.933, -2.184, 9.651),
+        'neck': (31.931, -3.319, -38.778), 'head': (12.404, -1.542),
+        'right_clavicle': (10.399, 6.827), 'right_shoulder': (21.15, 33.977, -6.504),
+        'right_elbow': (43.492, 10.729), 'right_wrist': (-4.853, 10.265),
     })
     human.KeyJoints(27.0, {
-        'right_clavicle': (-1.96, 12.176), 'right_shoulder': (20.464, 45.735, -16.606),
-        'right_elbow': (35.356, 5.07), 'right_wrist': (-5.601, 18.658),
+        'spine_lumbar': (11.057, -1.417, 10.822), 'spine_thoracic': (-10.126, -2.28, 10.045),
+        'neck': (32.43, -3.922, -41.879), 'right_clavicle': (6.02, 8.489),
+        'right_shoulder': (19.845, 38.593, -12.87), 'right_elbow': (45.177, 7.221),
+        'right_wrist': (-6.233, 10.973),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'right_clavicle': (1.313, 12.091), 'right_shoulder': (19.188, 47.207, -12.516),
-        'right_elbow': (33.403, 8.683), 'right_wrist': (-5.322, 20.0),
+        'spine_lumbar': (11.29, -0.736, 10.552), 'spine_thoracic': (-10.112, -3.385, 10.02),
+        'neck': (32.303, -3.811, -41.219), 'head': (12.41, -1.57), 'right_clavicle': (8.033, 8.258),
+        'right_shoulder': (19.897, 38.117, -10.501), 'right_elbow': (44.629, 9.131),
+        'right_wrist': (-5.945, 11.103),
     })
     human.KeyJoints(27.2, {
-        'right_clavicle': (17.494, 12.221), 'right_shoulder': (13.284, 46.17, 1.216),
-        'right_elbow': (37.372, 23.699), 'right_wrist': (-8.72, 10.678),
+        'spine_lumbar': (13.412, -4.696, 8.837), 'spine_thoracic': (-7.367, -9.143, 9.742),
+        'neck': (32.878, -3.602, -42.008), 'right_clavicle': (16.214, 8.357),
+        'right_shoulder': (15.726, 41.871, -2.307), 'right_elbow': (42.868, 19.032),
+        'right_wrist': (-6.651, 11.638),
     })
     human.KeyJoints(27.3, {
-        'right_clavicle': (22.867, 11.03), 'right_shoulder': (13.164, 42.912, 5.359),
-        'right_elbow': (40.039, 27.149), 'right_wrist': (-8.889, 6.135),
+        'spine_lumbar': (13.883, -8.657, 8.102), 'spine_thoracic': (-5.859, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
+        'right_clavicle': (19.69, 8.665), 'right_shoulder': (13.481, 43.445, 1.174),
+        'right_elbow': (41.343, 23.504), 'right_wrist': (-7.065, 10.049),
     })
     human.KeyJoints(27.4, {
-        'right_clavicle': (7.732, 5.229), 'right_shoulder': (19.391, 38.662, -6.088),
-        'right_elbow': (38.291, 10.437), 'right_wrist': (-4.364, 17.974),
+        'spine_lumbar': (8.977, -1.888, 8.911), 'spine_thoracic': (-9.164, -4.983, 9.158),
+        'neck': (32.073, -3.034, -38.282), 'head': (12.678, -1.529),
+        'right_clavicle': (13.862, 6.977), 'right_shoulder': (18.067, 35.828, -2.142),
+        'right_elbow': (43.567, 15.994), 'right_wrist': (-5.338, 11.684),
     })
     human.KeyJoints(27.5, {
-        'right_clavicle': (-0.77, 11.297), 'right_shoulder': (21.9, 44.502, -14.796),
-        'right_elbow': (33.821, 4.911), 'right_wrist': (-4.509, 19.503),
+        'spine_lumbar': (10.54, 0.19, 10.804), 'spine_thoracic': (-10.827, -2.029, 10.11),
+        'neck': (32.208, -3.756, -40.808), 'head': (12.367, -1.566),
+        'right_clavicle': (8.117, 7.743), 'right_shoulder': (21.104, 36.338, -10.285),
+        'right_elbow': (44.142, 8.389), 'right_wrist': (-5.497, 10.305),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
-        'right_clavicle': (-1.518, 12.109), 'right_shoulder': (20.417, 45.874, -15.994),
-        'right_elbow': (34.931, 5.484), 'right_wrist': (-5.418, 18.984),
+        'spine_lumbar': (11.068, -1.409, 10.813), 'spine_thoracic': (-10.114, -2.321, 10.042),
+        'neck': (32.427, -3.92, -41.866), 'right_clavicle': (6.06, 8.49),
+        'right_shoulder': (19.83, 38.599, -12.82), 'right_elbow': (45.171, 7.269),
+        'right_wrist': (-6.231, 10.985),
     })
     human.KeyJoints(27.7, {
-        'right_clavicle': (10.134, 12.228), 'right_shoulder': (15.342, 47.828, -4.521),
-        'right_elbow': (34.168, 17.253), 'right_wrist': (-7.042, 16.935),
+        'spine_lumbar': (12.56, -2.04, 9.672), 'spine_thoracic': (-8.802, -6.716, 9.879),
+        'neck': (32.443, -3.728, -41.324), 'head': (12.567, -1.567),
+        'right_clavicle': (12.541, 8.181), 'right_shoulder': (17.924, 39.991, -5.963),
+        'right_elbow': (43.883, 14.415), 'right_wrist': (-6.224, 11.942),
     })
     human.KeyJoints(27.8, {
-        'right_clavicle': (22.074, 12.119), 'right_shoulder': (13.115, 44.259, 4.75),
-        'right_elbow': (38.865, 26.996), 'right_wrist': (-8.958, 6.717),
+        'spine_lumbar': (13.876, -8.165, 8.158), 'spine_thoracic': (-6.015, -10.0, 9.661),
+        'neck': (33.45, -3.518, -43.055), 'head': (13.393, -1.516),
+        'right_clavicle': (19.165, 8.653), 'right_shoulder': (13.685, 43.371, 0.648),
+        'right_elbow': (41.614, 22.925), 'right_wrist': (-7.051, 10.359),
     })
     human.KeyJoints(27.9, {
-        'right_clavicle': (16.899, 5.497), 'right_shoulder': (14.919, 39.072, 1.186),
-        'right_elbow': (41.639, 19.723), 'right_wrist': (-6.938, 12.398),
+        'spine_lumbar': (11.486, -7.005, 8.075), 'spine_thoracic': (-6.618, -9.054, 9.324),
+        'neck': (33.022, -3.132, -40.74), 'head': (13.248, -1.479),
+        'right_clavicle': (18.195, 8.104), 'right_shoulder': (14.348, 40.526, 1.356),
+        'right_elbow': (42.357, 22.066), 'right_wrist': (-6.478, 11.088),
     })
     human.KeyJoints(28.0, {
-        'right_clavicle': (1.109, 9.266), 'right_shoulder': (22.644, 41.949, -12.485),
-        'right_elbow': (34.135, 5.083), 'right_wrist': (-3.625, 19.61),
+        'spine_lumbar': (9.45, 0.97, 10.431), 'spine_thoracic': (-11.078, -1.947, 9.846),
+        'neck': (32.006, -3.448, -39.361), 'head': (12.388, -1.549),
+        'right_clavicle': (9.749, 6.994), 'right_shoulder': (21.47, 34.17, -7.619),
+        'right_elbow': (43.519, 9.817), 'right_wrist': (-4.898, 10.081),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
-        'right_clavicle': (-1.976, 12.186), 'right_shoulder': (20.44, 45.751, -16.633),
-        'right_elbow': (35.384, 5.073), 'right_wrist': (-5.618, 18.644),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
+        'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(28.2, {
-        'right_clavicle': (2.928, 12.17), 'right_shoulder': (18.276, 47.771, -10.849),
-        'right_elbow': (33.158, 10.489), 'right_wrist': (-5.614, 19.987),
+        'spine_lumbar': (11.548, -0.845, 10.385), 'spine_thoracic': (-9.905, -4.035, 9.994),
+        'neck': (32.3, -3.795, -41.163), 'head': (12.417, -1.569), 'right_clavicle': (8.946, 8.219),
+        'right_shoulder': (19.592, 38.404, -9.558), 'right_elbow': (44.496, 10.166),
+        'right_wrist': (-5.97, 11.324),
     })
     human.KeyJoints(28.3, {
-        'right_clavicle': (19.262, 12.244), 'right_shoulder': (13.002, 45.623, 2.556),
-        'right_elbow': (38.179, 25.183), 'right_wrist': (-9.006, 9.0),
+        'spine_lumbar': (13.613, -5.754, 8.592), 'spine_thoracic': (-6.911, -9.619, 9.7),
+        'neck': (33.062, -3.568, -42.31), 'head': (13.098, -1.537),
+        'right_clavicle': (17.17, 8.457), 'right_shoulder': (15.026, 42.429, -1.348),
+        'right_elbow': (42.513, 20.32), 'right_wrist': (-6.799, 11.337),
     })
     human.KeyJoints(28.4, {
-        'right_clavicle': (22.736, 9.693), 'right_shoulder': (13.17, 41.716, 5.277),
-        'right_elbow': (41.246, 26.64), 'right_wrist': (-8.805, 6.388),
+        'spine_lumbar': (13.766, -8.639, 8.104), 'spine_thoracic': (-5.87, -10.0, 9.683),
+        'neck': (33.538, -3.479, -43.13), 'head': (13.47, -1.507),
+        'right_clavicle': (19.745, 8.631), 'right_shoulder': (13.508, 43.275, 1.32),
+        'right_elbow': (41.318, 23.555), 'right_wrist': (-7.025, 10.025),
     })
     human.KeyJoints(28.5, {
-        'right_clavicle': (5.417, 6.068), 'right_shoulder': (20.747, 39.059, -8.184),
-        'right_elbow': (37.086, 8.24), 'right_wrist': (-3.857, 18.713),
+        'spine_lumbar': (8.785, -0.593, 9.323), 'spine_thoracic': (-9.922, -3.743, 9.253),
+        'neck': (31.948, -3.106, -38.182), 'head': (12.542, -1.532),
+        'right_clavicle': (12.453, 6.795), 'right_shoulder': (19.33, 34.689, -3.684),
+        'right_elbow': (43.593, 13.895), 'right_wrist': (-5.051, 11.238),
     })
     human.KeyJoints(28.6, {
-        'right_clavicle': (-1.276, 11.706), 'right_shoulder': (21.37, 45.062, -15.536),
-        'right_elbow': (34.315, 4.958), 'right_wrist': (-4.93, 19.216),
+        'spine_lumbar': (10.775, -0.384, 10.816), 'spine_thoracic': (-10.582, -2.125, 10.099),
+        'neck': (32.287, -3.827, -41.227), 'head': (12.388, -1.57),
+        'right_clavicle': (7.351, 8.032), 'right_shoulder': (20.672, 37.21, -11.278),
+        'right_elbow': (44.514, 7.936), 'right_wrist': (-5.773, 10.539),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'right_clavicle': (-0.824, 12.02), 'right_shoulder': (20.306, 46.101, -15.053),
-        'right_elbow': (34.314, 6.15), 'right_wrist': (-5.179, 19.442),
+        'spine_lumbar': (11.093, -1.251, 10.773), 'spine_thoracic': (-10.114, -2.488, 10.04),
+        'neck': (32.397, -3.903, -41.738), 'head': (12.43, -1.575),
+        'right_clavicle': (6.397, 8.443), 'right_shoulder': (19.855, 38.471, -12.41),
+        'right_elbow': (45.066, 7.571), 'right_wrist': (-6.165, 10.992),
     })
     human.KeyJoints(28.8, {
-        'right_clavicle': (12.797, 12.208), 'right_shoulder': (14.518, 47.351, -2.386),
-        'right_elbow': (35.162, 19.589), 'right_wrist': (-7.625, 14.937),
+        'spine_lumbar': (12.878, -2.768, 9.393), 'spine_thoracic': (-8.342, -7.647, 9.835),
+        'neck': (32.558, -3.687, -41.492), 'head': (12.68, -1.565),
+        'right_clavicle': (13.844, 8.21), 'right_shoulder': (17.223, 40.613, -4.668),
+        'right_elbow': (43.576, 16.004), 'right_wrist': (-6.352, 11.963),
     })
     human.KeyJoints(28.9, {
-        'right_clavicle': (22.146, 12.11), 'right_shoulder': (13.144, 44.217, 4.81),
-        'right_elbow': (38.876, 27.023), 'right_wrist': (-8.934, 6.677),
+        'spine_lumbar': (13.883, -8.497, 8.118), 'spine_thoracic': (-5.909, -10.0, 9.675),
+        'neck': (33.509, -3.509, -43.167), 'head': (13.441, -1.514),
+        'right_clavicle': (19.513, 8.662), 'right_shoulder': (13.544, 43.427, 0.997),
+        'right_elbow': (41.435, 23.313), 'right_wrist': (-7.063, 10.155),
     })
     human.KeyJoints(29.0, {
-        'right_clavicle': (13.688, 4.892), 'right_shoulder': (16.265, 38.71, -1.21),
-        'right_elbow': (40.663, 16.416), 'right_wrist': (-5.989, 14.864),
+        'spine_lumbar': (10.451, -5.341, 8.257), 'spine_thoracic': (-7.395, -7.871, 9.202),
+        'neck': (32.616, -3.055, -39.661), 'head': (13.057, -1.517),
+        'right_clavicle': (16.933, 7.715), 'right_shoulder': (15.394, 38.977, 0.549),
+        'right_elbow': (42.945, 20.367), 'right_wrist': (-6.114, 11.654),
     })
     human.KeyJoints(29.1, {
-        'right_clavicle': (0.358, 10.096), 'right_shoulder': (22.582, 42.93, -13.345),
-        'right_elbow': (33.871, 4.956), 'right_wrist': (-3.813, 19.618),
+        'spine_lumbar': (9.881, 0.951, 10.635), 'spine_thoracic': (-11.124, -1.864, 9.994),
+        'neck': (32.058, -3.572, -39.868), 'head': (12.356, -1.556),
+        'right_clavicle': (9.211, 7.233), 'right_shoulder': (21.586, 34.807, -8.584),
+        'right_elbow': (43.639, 9.188), 'right_wrist': (-5.058, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
-        'right_clavicle': (-1.974, 12.186), 'right_shoulder': (20.44, 45.751, -16.63),
-        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.618, 18.645),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
+        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
+        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(29.3, {
-        'right_clavicle': (5.025, 12.228), 'right_shoulder': (17.288, 48.067, -8.911),
-        'right_elbow': (33.108, 12.572), 'right_wrist': (-6.013, 19.559),
+        'spine_lumbar': (11.869, -1.086, 10.18), 'spine_thoracic': (-9.595, -4.829, 9.96),
+        'neck': (32.314, -3.785, -41.168), 'head': (12.434, -1.569),
+        'right_clavicle': (10.012, 8.192), 'right_shoulder': (19.126, 38.856, -8.484),
+        'right_elbow': (44.343, 11.411), 'right_wrist': (-6.028, 11.582),
     })
     human.KeyJoints(29.4, {
-        'right_clavicle': (20.751, 12.195), 'right_shoulder': (13.025, 44.954, 3.711),
-        'right_elbow': (38.597, 26.197), 'right_wrist': (-8.997, 7.754),
+        'spine_lumbar': (13.771, -6.756, 8.385), 'spine_thoracic': (-6.514, -9.904, 9.664),
+        'neck': (33.226, -3.543, -42.607), 'head': (13.221, -1.526),
+        'right_clavicle': (17.957, 8.558), 'right_shoulder': (14.412, 42.913, -0.56),
+        'right_elbow': (42.185, 21.403), 'right_wrist': (-6.933, 11.002),
     })
     human.KeyJoints(29.5, {
-        'right_clavicle': (21.793, 8.114), 'right_shoulder': (13.369, 40.575, 4.639),
-        'right_elbow': (42.023, 25.207), 'right_wrist': (-8.467, 7.565),
+        'spine_lumbar': (13.323, -8.658, 8.041), 'spine_thoracic': (-5.875, -10.0, 9.604),
+        'neck': (33.507, -3.382, -42.693), 'head': (13.472, -1.486),
+        'right_clavicle': (19.631, 8.57), 'right_shoulder': (13.476, 42.791, 1.596),
+        'right_elbow': (41.421, 23.592), 'right_wrist': (-6.944, 10.101),
     })
     human.KeyJoints(29.6, {
-        'right_clavicle': (3.574, 7.109), 'right_shoulder': (21.823, 39.827, -9.953),
-        'right_elbow': (35.928, 6.618), 'right_wrist': (-3.553, 19.142),
+        'spine_lumbar': (8.768, 0.322, 9.743), 'spine_thoracic': (-10.513, -2.806, 9.434),
+        'neck': (31.919, -3.19, -38.359), 'head': (12.47, -1.536),
+        'right_clavicle': (11.289, 6.733), 'right_shoulder': (20.373, 34.063, -5.166),
+        'right_elbow': (43.537, 12.114), 'right_wrist': (-4.886, 10.71),
     })
     human.KeyJoints(29.7, {
-        'right_clavicle': (-1.691, 12.002), 'right_shoulder': (20.836, 45.481, -16.178),
-        'right_elbow': (34.919, 5.02), 'right_wrist': (-5.328, 18.888),
+        'spine_lumbar': (10.951, -0.987, 10.821), 'spine_thoracic': (-10.316, -2.217, 10.072),
+        'neck': (32.371, -3.886, -41.619), 'right_clavicle': (6.571, 8.302),
+        'right_shoulder': (20.191, 38.028, -12.218), 'right_elbow': (44.901, 7.512),
+        'right_wrist': (-6.044, 10.792),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'right_clavicle': (0.135, 12.002), 'right_shoulder': (19.997, 46.53, -13.851),
-        'right_elbow': (33.767, 7.207), 'right_wrist': (-5.124, 19.821),
+        'spine_lumbar': (11.157, -0.956, 10.687), 'spine_thoracic': (-10.114, -2.841, 10.033),
+        'neck': (32.341, -3.869, -41.49), 'head': (12.406, -1.573),
+        'right_clavicle': (7.086, 8.351), 'right_shoulder': (19.887, 38.256, -11.585),
+        'right_elbow': (44.86, 8.2), 'right_wrist': (-6.04, 11.023),
     })
     human.KeyJoints(29.9, {
-        'right_clavicle': (15.3, 12.203), 'right_shoulder': (13.835, 46.761, -0.447),
-        'right_elbow': (36.284, 21.772), 'right_wrist': (-8.196, 12.759),
+        'spine_lumbar': (13.163, -3.662, 9.112), 'spine_thoracic': (-7.859, -8.471, 9.789),
+        'neck': (32.702, -3.643, -41.723), 'head': (12.817, -1.564),
+        'right_clavicle': (15.082, 8.27), 'right_shoulder': (16.483, 41.246, -3.436),
+        'right_elbow': (43.233, 17.558), 'right_wrist': (-6.496, 11.859),
     })
     human.KeyJoints(30.0, {
-        'right_clavicle': (22.414, 11.862), 'right_shoulder': (13.224, 43.83, 5.027),
-        'right_elbow': (39.035, 27.058), 'right_wrist': (-8.857, 6.522),
+        'spine_lumbar': (13.883, -8.636, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
+        'neck': (33.534, -3.504, -43.214), 'head': (13.461, -1.513),
+        'right_clavicle': (19.664, 8.665), 'right_shoulder': (13.489, 43.443, 1.148),
+        'right_elbow': (41.356, 23.477), 'right_wrist': (-7.065, 10.065),
     })
     human.KeyJoints(30.1, {
-        'right_clavicle': (10.55, 4.927), 'right_shoulder': (17.82, 38.578, -3.697),
-        'right_elbow': (39.523, 13.238), 'right_wrist': (-5.101, 16.746),
+        'spine_lumbar': (9.582, -3.544, 8.541), 'spine_thoracic': (-8.281, -6.443, 9.14),
+        'neck': (32.291, -3.023, -38.801), 'head': (12.852, -1.529),
+        'right_clavicle': (15.436, 7.314), 'right_shoulder': (16.685, 37.347, -0.658),
+        'right_elbow': (43.377, 18.266), 'right_wrist': (-5.715, 11.824),
     })
     human.KeyJoints(30.2, {
-        'right_clavicle': (-0.208, 10.763), 'right_shoulder': (22.282, 43.789, -14.04),
-        'right_elbow': (33.749, 4.909), 'right_wrist': (-4.137, 19.589),
+        'spine_lumbar': (10.238, 0.668, 10.753), 'spine_thoracic': (-11.017, -1.928, 10.079),
+        'neck': (32.128, -3.672, -40.348), 'head': (12.353, -1.561),
+        'right_clavicle': (8.703, 7.474), 'right_shoulder': (21.416, 35.513, -9.412),
+        'right_elbow': (43.848, 8.78), 'right_wrist': (-5.254, 10.12),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
-        'right_clavicle': (-1.882, 12.169), 'right_shoulder': (20.439, 45.775, -16.5),
-        'right_elbow': (35.289, 5.156), 'right_wrist': (-5.575, 18.715),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
+        'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(30.4, {
-        'right_clavicle': (7.453, 12.241), 'right_shoulder': (16.292, 48.086, -6.769),
-        'right_elbow': (33.443, 14.848), 'right_wrist': (-6.49, 18.538),
+        'spine_lumbar': (12.213, -1.478, 9.94), 'spine_thoracic': (-9.229, -5.739, 9.922),
+        'neck': (32.361, -3.762, -41.218), 'head': (12.483, -1.568),
+        'right_clavicle': (11.225, 8.177), 'right_shoulder': (18.572, 39.391, -7.273),
+        'right_elbow': (44.143, 12.842), 'right_wrist': (-6.114, 11.802),
     })
     human.KeyJoints(30.5, {
-        'right_clavicle': (21.69, 12.142), 'right_shoulder': (13.08, 44.465, 4.448),
-        'right_elbow': (38.796, 26.772), 'right_wrist': (-8.973, 7.013),
+        'spine_lumbar': (13.854, -7.585, 8.239), 'spine_thoracic': (-6.211, -10.0, 9.65),
+        'neck': (33.355, -3.528, -42.863), 'head': (13.319, -1.52),
+        'right_clavicle': (18.61, 8.626), 'right_shoulder': (13.958, 43.23, 0.092),
+        'right_elbow': (41.888, 22.27), 'right_wrist': (-7.018, 10.669),
     })
     human.KeyJoints(30.6, {
-        'right_clavicle': (19.768, 6.627), 'right_shoulder': (13.93, 39.686, 3.235),
-        'right_elbow': (42.067, 22.82), 'right_wrist': (-7.821, 9.739),
+        'spine_lumbar': (12.525, -8.186, 8.005), 'spine_thoracic': (-6.083, -9.8, 9.47),
+        'neck': (33.349, -3.246, -41.837), 'head': (13.406, -1.467),
+        'right_clavicle': (19.118, 8.406), 'right_shoulder': (13.689, 41.85, 1.695),
+        'right_elbow': (41.78, 23.17), 'right_wrist': (-6.766, 10.471),
     })
     human.KeyJoints(30.7, {
-        'right_clavicle': (2.181, 8.194), 'right_shoulder': (22.368, 40.8, -11.357),
-        'right_elbow': (34.942, 5.66), 'right_wrist': (-3.517, 19.42),
+        'spine_lumbar': (9.049, 0.908, 10.129), 'spine_thoracic': (-10.929, -2.191, 9.648),
+        'neck': (31.93, -3.316, -38.77), 'head': (12.405, -1.542),
+        'right_clavicle': (10.411, 6.825), 'right_shoulder': (21.141, 33.977, -6.484),
+        'right_elbow': (43.492, 10.748), 'right_wrist': (-4.853, 10.271),
     })
     human.KeyJoints(30.8, {
-        'right_clavicle': (-1.957, 12.174), 'right_shoulder': (20.467, 45.733, -16.602),
-        'right_elbow': (35.352, 5.07), 'right_wrist': (-5.599, 18.66),
+        'spine_lumbar': (11.056, -1.413, 10.822), 'spine_thoracic': (-10.128, -2.28, 10.045),
+        'neck': (32.43, -3.922, -41.877), 'right_clavicle': (6.025, 8.487),
+        'right_shoulder': (19.848, 38.588, -12.864), 'right_elbow': (45.174, 7.223),
+        'right_wrist': (-6.232, 10.971),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'right_clavicle': (1.29, 12.089), 'right_shoulder': (19.202, 47.196, -12.541),
-        'right_elbow': (33.408, 8.656), 'right_wrist': (-5.318, 20.0),
+        'spine_lumbar': (11.287, -0.736, 10.554), 'spine_thoracic': (-10.112, -3.375, 10.02),
+        'neck': (32.303, -3.812, -41.222), 'head': (12.409, -1.57),
+        'right_clavicle': (8.017, 8.259), 'right_shoulder': (19.897, 38.117, -10.519),
+        'right_elbow': (44.632, 9.115), 'right_wrist': (-5.945, 11.101),
     })
     human.KeyJoints(31.0, {
-        'right_clavicle': (17.462, 12.22), 'right_shoulder': (13.293, 46.179, 1.192),
-        'right_elbow': (37.355, 23.67), 'right_wrist': (-8.711, 10.709),
+        'spine_lumbar': (13.409, -4.679, 8.841), 'spine_thoracic': (-7.375, -9.134, 9.743),
+        'neck': (32.875, -3.602, -42.003), 'right_clavicle': (16.197, 8.355),
+        'right_shoulder': (15.739, 41.861, -2.324), 'right_elbow': (42.875, 19.009),
+        'right_wrist': (-6.649, 11.643),
     })
     human.KeyJoints(31.1, {
-        'right_clavicle': (22.865, 11.047), 'right_shoulder': (13.165, 42.93, 5.357),
-        'right_elbow': (40.02, 27.149), 'right_wrist': (-8.889, 6.136),
+        'spine_lumbar': (13.883, -8.658, 8.101), 'spine_thoracic': (-5.859, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
+        'right_clavicle': (19.688, 8.665), 'right_shoulder': (13.48, 43.445, 1.173),
+        'right_elbow': (41.343, 23.503), 'right_wrist': (-7.065, 10.05),
     })
     human.KeyJoints(31.2, {
-        'right_clavicle': (7.776, 5.217), 'right_shoulder': (19.366, 38.657, -6.05),
-        'right_elbow': (38.312, 10.48), 'right_wrist': (-4.376, 17.957),
+        'spine_lumbar': (8.985, -1.914, 8.904), 'spine_thoracic': (-9.15, -5.007, 9.156),
+        'neck': (32.076, -3.034, -38.287), 'head': (12.681, -1.529),
+        'right_clavicle': (13.888, 6.982), 'right_shoulder': (18.044, 35.851, -2.116),
+        'right_elbow': (43.565, 16.032), 'right_wrist': (-5.344, 11.691),
     })
     human.KeyJoints(31.3, {
-        'right_clavicle': (-0.761, 11.289), 'right_shoulder': (21.908, 44.491, -14.783),
-        'right_elbow': (33.816, 4.91), 'right_wrist': (-4.502, 19.506),
+        'spine_lumbar': (10.536, 0.198, 10.804), 'spine_thoracic': (-10.83, -2.028, 10.11),
+        'neck': (32.207, -3.755, -40.802), 'head': (12.367, -1.566),
+        'right_clavicle': (8.128, 7.738), 'right_shoulder': (21.11, 36.324, -10.269),
+        'right_elbow': (44.136, 8.396), 'right_wrist': (-5.493, 10.302),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
-        'right_clavicle': (-1.527, 12.11), 'right_shoulder': (20.418, 45.872, -16.006),
-        'right_elbow': (34.939, 5.476), 'right_wrist': (-5.421, 18.977),
+        'spine_lumbar': (11.068, -1.41, 10.814), 'spine_thoracic': (-10.114, -2.32, 10.042),
+        'neck': (32.428, -3.92, -41.867), 'right_clavicle': (6.057, 8.491),
+        'right_shoulder': (19.829, 38.6, -12.823), 'right_elbow': (45.172, 7.266),
+        'right_wrist': (-6.231, 10.985),
     })
     human.KeyJoints(31.5, {
-        'right_clavicle': (10.088, 12.228), 'right_shoulder': (15.357, 47.834, -4.558),
-        'right_elbow': (34.154, 17.213), 'right_wrist': (-7.032, 16.965),
+        'spine_lumbar': (12.554, -2.03, 9.676), 'spine_thoracic': (-8.809, -6.7, 9.88),
+        'neck': (32.441, -3.729, -41.322), 'head': (12.565, -1.567),
+        'right_clavicle': (12.519, 8.18), 'right_shoulder': (17.935, 39.981, -5.985),
+        'right_elbow': (43.888, 14.389), 'right_wrist': (-6.222, 11.941),
     })
     human.KeyJoints(31.6, {
-        'right_clavicle': (22.071, 12.119), 'right_shoulder': (13.114, 44.26, 4.748),
-        'right_elbow': (38.864, 26.995), 'right_wrist': (-8.958, 6.719),
+        'spine_lumbar': (13.876, -8.158, 8.159), 'spine_thoracic': (-6.018, -10.0, 9.661),
+        'neck': (33.449, -3.518, -43.053), 'head': (13.392, -1.516),
+        'right_clavicle': (19.157, 8.653), 'right_shoulder': (13.689, 43.369, 0.64),
+        'right_elbow': (41.618, 22.916), 'right_wrist': (-7.051, 10.364),
     })
     human.KeyJoints(31.7, {
-        'right_clavicle': (16.951, 5.513), 'right_shoulder': (14.899, 39.08, 1.224),
-        'right_elbow': (41.651, 19.777), 'right_wrist': (-6.954, 12.354),
+        'spine_lumbar': (11.503, -7.029, 8.073), 'spine_thoracic': (-6.608, -9.069, 9.326),
+        'neck': (33.028, -3.134, -40.758), 'head': (13.251, -1.478),
+        'right_clavicle': (18.213, 8.11), 'right_shoulder': (14.334, 40.549, 1.364),
+        'right_elbow': (42.347, 22.088), 'right_wrist': (-6.484, 11.078),
     })
     human.KeyJoints(31.8, {
-        'right_clavicle': (1.124, 9.25), 'right_shoulder': (22.642, 41.93, -12.469),
-        'right_elbow': (34.144, 5.088), 'right_wrist': (-3.623, 19.608),
+        'spine_lumbar': (9.442, 0.97, 10.427), 'spine_thoracic': (-11.076, -1.95, 9.843),
+        'neck': (32.005, -3.445, -39.351), 'head': (12.388, -1.549),
+        'right_clavicle': (9.758, 6.99), 'right_shoulder': (21.466, 34.161, -7.601),
+        'right_elbow': (43.518, 9.83), 'right_wrist': (-4.896, 10.084),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
-        'right_clavicle': (-1.976, 12.186), 'right_shoulder': (20.44, 45.751, -16.633),
-        'right_elbow': (35.384, 5.073), 'right_wrist': (-5.618, 18.644),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
+        'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(32.0, {
-        'right_clavicle': (2.897, 12.169), 'right_shoulder': (18.292, 47.763, -10.88),
-        'right_elbow': (33.161, 10.456), 'right_wrist': (-5.608, 19.989),
+        'spine_lumbar': (11.542, -0.842, 10.388), 'spine_thoracic': (-9.911, -4.023, 9.994),
+        'neck': (32.3, -3.794, -41.162), 'head': (12.417, -1.569), 'right_clavicle': (8.93, 8.22),
+        'right_shoulder': (19.6, 38.396, -9.574), 'right_elbow': (44.498, 10.147),
+        'right_wrist': (-5.97, 11.319),
     })
     human.KeyJoints(32.1, {
-        'right_clavicle': (19.233, 12.245), 'right_shoulder': (13.002, 45.634, 2.534),
-        'right_elbow': (38.169, 25.162), 'right_wrist': (-9.006, 9.025),
+        'spine_lumbar': (13.61, -5.736, 8.596), 'spine_thoracic': (-6.918, -9.613, 9.7),
+        'neck': (33.059, -3.568, -42.305), 'head': (13.096, -1.538),
+        'right_clavicle': (17.155, 8.455), 'right_shoulder': (15.037, 42.42, -1.362),
+        'right_elbow': (42.518, 20.3), 'right_wrist': (-6.796, 11.343),
     })
     human.KeyJoints(32.2, {
-        'right_clavicle': (22.741, 9.719), 'right_shoulder': (13.17, 41.737, 5.28),
-        'right_elbow': (41.228, 26.655), 'right_wrist': (-8.808, 6.38),
+        'spine_lumbar': (13.77, -8.639, 8.105), 'spine_thoracic': (-5.87, -10.0, 9.683),
+        'neck': (33.538, -3.48, -43.132), 'head': (13.47, -1.507),
+        'right_clavicle': (19.745, 8.632), 'right_shoulder': (13.508, 43.279, 1.317),
+        'right_elbow': (41.318, 23.554), 'right_wrist': (-7.026, 10.025),
     })
     human.KeyJoints(32.3, {
-        'right_clavicle': (5.451, 6.053), 'right_shoulder': (20.727, 39.051, -8.152),
-        'right_elbow': (37.106, 8.271), 'right_wrist': (-3.863, 18.704),
+        'spine_lumbar': (8.785, -0.612, 9.316), 'spine_thoracic': (-9.91, -3.762, 9.251),
+        'neck': (31.95, -3.104, -38.18), 'head': (12.544, -1.532),
+        'right_clavicle': (12.475, 6.797), 'right_shoulder': (19.31, 34.706, -3.658),
+        'right_elbow': (43.594, 13.928), 'right_wrist': (-5.055, 11.247),
     })
     human.KeyJoints(32.4, {
-        'right_clavicle': (-1.268, 11.7), 'right_shoulder': (21.38, 45.054, -15.524),
-        'right_elbow': (34.305, 4.957), 'right_wrist': (-4.923, 19.222),
+        'spine_lumbar': (10.772, -0.374, 10.816), 'spine_thoracic': (-10.586, -2.124, 10.099),
+        'neck': (32.286, -3.826, -41.22), 'head': (12.387, -1.57), 'right_clavicle': (7.365, 8.027),
+        'right_shoulder': (20.681, 37.195, -11.261), 'right_elbow': (44.507, 7.943),
+        'right_wrist': (-5.769, 10.535),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'right_clavicle': (-0.838, 12.021), 'right_shoulder': (20.309, 46.096, -15.072),
-        'right_elbow': (34.325, 6.136), 'right_wrist': (-5.183, 19.433),
+        'spine_lumbar': (11.092, -1.255, 10.774), 'spine_thoracic': (-10.114, -2.484, 10.04),
+        'neck': (32.398, -3.904, -41.742), 'head': (12.431, -1.575),
+        'right_clavicle': (6.389, 8.444), 'right_shoulder': (19.855, 38.474, -12.421),
+        'right_elbow': (45.069, 7.563), 'right_wrist': (-6.167, 10.992),
     })
     human.KeyJoints(32.6, {
-        'right_clavicle': (12.753, 12.208), 'right_shoulder': (14.531, 47.36, -2.42),
-        'right_elbow': (35.144, 19.551), 'right_wrist': (-7.615, 14.973),
+        'spine_lumbar': (12.873, -2.754, 9.398), 'spine_thoracic': (-8.35, -7.632, 9.836),
+        'neck': (32.556, -3.688, -41.489), 'head': (12.678, -1.565),
+        'right_clavicle': (13.822, 8.209), 'right_shoulder': (17.236, 40.602, -4.689),
+        'right_elbow': (43.581, 15.977), 'right_wrist': (-6.35, 11.963),
     })
     human.KeyJoints(32.7, {
-        'right_clavicle': (22.142, 12.111), 'right_shoulder': (13.141, 44.22, 4.807),
-        'right_elbow': (38.875, 27.023), 'right_wrist': (-8.936, 6.678),
+        'spine_lumbar': (13.883, -8.494, 8.119), 'spine_thoracic': (-5.91, -10.0, 9.675),
+        'neck': (33.508, -3.509, -43.166), 'head': (13.44, -1.514),
+        'right_clavicle': (19.509, 8.662), 'right_shoulder': (13.546, 43.426, 0.993),
+        'right_elbow': (41.437, 23.308), 'right_wrist': (-7.063, 10.157),
     })
     human.KeyJoints(32.8, {
-        'right_clavicle': (13.741, 4.892), 'right_shoulder': (16.242, 38.713, -1.17),
-        'right_elbow': (40.68, 16.47), 'right_wrist': (-6.004, 14.829),
+        'spine_lumbar': (10.467, -5.372, 8.253), 'spine_thoracic': (-7.38, -7.893, 9.203),
+        'neck': (32.623, -3.056, -39.677), 'head': (13.06, -1.516),
+        'right_clavicle': (16.956, 7.722), 'right_shoulder': (15.374, 39.004, 0.566),
+        'right_elbow': (42.937, 20.399), 'right_wrist': (-6.12, 11.648),
     })
     human.KeyJoints(32.9, {
-        'right_clavicle': (0.369, 10.084), 'right_shoulder': (22.586, 42.915, -13.332),
-        'right_elbow': (33.874, 4.957), 'right_wrist': (-3.808, 19.618),
+        'spine_lumbar': (9.874, 0.952, 10.633), 'spine_thoracic': (-11.124, -1.864, 9.992),
+        'neck': (32.057, -3.57, -39.862), 'head': (12.357, -1.556),
+        'right_clavicle': (9.221, 7.229), 'right_shoulder': (21.586, 34.797, -8.568),
+        'right_elbow': (43.637, 9.197), 'right_wrist': (-5.055, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
-        'right_clavicle': (-1.975, 12.186), 'right_shoulder': (20.44, 45.751, -16.631),
-        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.618, 18.645),
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
+        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
+        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(33.1, {
-        'right_clavicle': (4.986, 12.228), 'right_shoulder': (17.305, 48.063, -8.946),
-        'right_elbow': (33.105, 12.535), 'right_wrist': (-6.006, 19.571),
+        'spine_lumbar': (11.863, -1.081, 10.184), 'spine_thoracic': (-9.6, -4.815, 9.96),
+        'neck': (32.314, -3.785, -41.167), 'head': (12.433, -1.569),
+        'right_clavicle': (9.993, 8.192), 'right_shoulder': (19.134, 38.848, -8.503),
+        'right_elbow': (44.346, 11.388), 'right_wrist': (-6.027, 11.578),
     })
     human.KeyJoints(33.2, {
-        'right_clavicle': (20.73, 12.196), 'right_shoulder': (13.024, 44.965, 3.695),
-        'right_elbow': (38.592, 26.183), 'right_wrist': (-8.997, 7.771),
+        'spine_lumbar': (13.768, -6.74, 8.388), 'spine_thoracic': (-6.52, -9.9, 9.665),
+        'neck': (33.223, -3.544, -42.602), 'head': (13.219, -1.526),
+        'right_clavicle': (17.945, 8.556), 'right_shoulder': (14.422, 42.905, -0.572),
+        'right_elbow': (42.19, 21.387), 'right_wrist': (-6.931, 11.008),
     })
     human.KeyJoints(33.3, {
-        'right_clavicle': (21.821, 8.142), 'right_shoulder': (13.362, 40.593, 4.658),
-        'right_elbow': (42.014, 25.241), 'right_wrist': (-8.476, 7.533),
+        'spine_lumbar': (13.332, -8.659, 8.042), 'spine_thoracic': (-5.875, -10.0, 9.606),
+        'neck': (33.508, -3.384, -42.702), 'head': (13.472, -1.486),
+        'right_clavicle': (19.634, 8.571), 'right_shoulder': (13.476, 42.802, 1.594),
+        'right_elbow': (41.418, 23.593), 'right_wrist': (-6.945, 10.099),
     })
     human.KeyJoints(33.4, {
-        'right_clavicle': (3.601, 7.091), 'right_shoulder': (21.808, 39.812, -9.926),
-        'right_elbow': (35.946, 6.64), 'right_wrist': (-3.557, 19.137),
+        'spine_lumbar': (8.767, 0.311, 9.737), 'spine_thoracic': (-10.505, -2.818, 9.431),
+        'neck': (31.919, -3.188, -38.354), 'head': (12.471, -1.536),
+        'right_clavicle': (11.305, 6.733), 'right_shoulder': (20.358, 34.065, -5.142),
+        'right_elbow': (43.538, 12.139), 'right_wrist': (-4.887, 10.717),
     })
     human.KeyJoints(33.5, {
-        'right_clavicle': (-1.685, 11.998), 'right_shoulder': (20.845, 45.476, -16.169),
-        'right_elbow': (34.909, 5.019), 'right_wrist': (-5.322, 18.893),
+        'spine_lumbar': (10.949, -0.978, 10.821), 'spine_thoracic': (-10.32, -2.215, 10.073),
+        'neck': (32.37, -3.885, -41.614), 'right_clavicle': (6.583, 8.298),
+        'right_shoulder': (20.199, 38.016, -12.204), 'right_elbow': (44.895, 7.519),
+        'right_wrist': (-6.04, 10.788),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'right_clavicle': (-0.35, 11.992), 'right_shoulder': (20.191, 46.287, -14.443),
-        'right_elbow': (33.994, 6.644), 'right_wrist': (-5.104, 19.667),
+        'spine_lumbar': (11.2, -0.833, 10.639), 'spine_thoracic': (-10.113, -3.036, 10.029),
+        'neck': (32.318, -3.849, -41.372), 'head': (12.399, -1.572),
+        'right_clavicle': (7.444, 8.309), 'right_shoulder': (19.895, 38.176, -11.164),
+        'right_elbow': (44.761, 8.54), 'right_wrist': (-5.987, 11.048),
     })
     human.KeyJoints(33.7, {
-        'right_clavicle': (13.036, 12.207), 'right_shoulder': (14.449, 47.3, -2.198),
-        'right_elbow': (35.263, 19.798), 'right_wrist': (-7.679, 14.741),
+        'spine_lumbar': (13.37, -4.499, 8.886), 'spine_thoracic': (-7.457, -9.033, 9.751),
+        'neck': (32.842, -3.609, -41.953), 'right_clavicle': (16.017, 8.339),
+        'right_shoulder': (15.864, 41.759, -2.504), 'right_elbow': (42.936, 18.771),
+        'right_wrist': (-6.622, 11.687),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (9.649, -5.691, 10.197), 'spine_thoracic': (-9.525, -3.796, 9.695),
-        'neck': (30.873, 0.0, -41.472), 'head': (13.231, 0.0), 'right_clavicle': (22.118, 12.116),
-        'right_shoulder': (13.119, 44.234, 4.785), 'right_elbow': (38.872, 27.022),
-        'right_wrist': (-8.956, 6.683),
+        'spine_lumbar': (13.875, -8.66, 8.101), 'spine_thoracic': (-5.861, -10.0, 9.683),
+        'neck': (33.539, -3.501, -43.215), 'right_clavicle': (19.71, 8.659),
+        'right_shoulder': (13.489, 43.432, 1.195), 'right_elbow': (41.334, 23.518),
+        'right_wrist': (-7.06, 10.043),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (8.451, -9.766, 9.783), 'spine_thoracic': (-8.774, -3.975, 9.297),
-        'neck': (32.125, 0.0, -41.512), 'head': (13.768, 0.0), 'right_clavicle': (15.447, 2.6),
-        'right_shoulder': (14.723, 32.131, -1.568), 'right_elbow': (41.505, 14.795),
-        'right_wrist': (-6.318, 2.895),
+        'spine_lumbar': (6.893, -9.113, 8.076), 'spine_thoracic': (-7.753, -6.349, 8.602),
+        'neck': (33.245, -2.085, -38.143), 'head': (14.014, -1.427),
+        'right_clavicle': (12.161, 6.774), 'right_shoulder': (16.097, 32.95, -3.6),
+        'right_elbow': (39.374, 14.306), 'right_wrist': (-5.568, 3.041),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (7.069, -13.708, 9.491), 'spine_thoracic': (-8.529, -4.492, 9.045),
-        'neck': (33.75, 0.0, -41.02), 'head': (14.464, 0.0), 'right_clavicle': (4.729, 6.192),
-        'right_shoulder': (19.482, 31.401, -14.047), 'right_elbow': (35.861, 2.645),
-        'right_wrist': (-5.0, -3.895),
+        'spine_lumbar': (6.184, -11.784, 9.461), 'spine_thoracic': (-9.449, -4.176, 9.123),
+        'neck': (34.579, -1.805, -39.979), 'head': (14.898, -1.25),
+        'right_clavicle': (5.471, 6.836), 'right_shoulder': (19.056, 30.598, -13.511),
+        'right_elbow': (36.407, 4.325), 'right_wrist': (-5.668, -5.747),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.060115, duration=0.072)
     human.KeyJoints(34.1, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (33.946, 0.0, -41.142), 'head': (14.548, 0.0), 'right_clavicle': (2.794, 7.882),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321568)
-    human.KeyJoints(34.2, {'neck': (32.618, 0.0, -36.953), 'head': (13.979, 0.0)})
-    human.KeyJoints(34.3, {'neck': (27.782, 0.0, -21.7), 'head': (11.907, 0.0)})
+    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321358)
+    human.KeyJoints(34.2, {'neck': (33.724, -1.696, -37.067), 'head': (14.207, -1.188)})
+    human.KeyJoints(34.3, {'neck': (29.081, -0.674, -21.827), 'head': (11.32, -1.193)})
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
-        'neck': (23.242, 0.0, -7.382), 'head': (9.961, 0.0),
+        'neck': (24.727, 0.285, -7.536), 'head': (8.613, -1.198),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.453683, duration=10.462927)
+    human.LookAt((20.0, 105.0, 111.6), start=34.453473, duration=10.463136)
     human.KeyJoints(34.5, {
-        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0),
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
         'right_shoulder': (18.864, 31.799, -15.418), 'right_elbow': (37.439, 3.55),
         'right_wrist': (-6.304, -5.742),
     })
@@ -1765,465 +2134,644 @@ def remove_access_panel_cad():
         'right_wrist': (-1.157, -20.178),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0), 'right_clavicle': (2.794, 7.882),
-        'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
-        'right_wrist': (-1.15, -21.055),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (56.301, 2.086, 11.179),
+        'right_elbow': (33.131, 18.45), 'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (6.658, -14.175, 9.672), 'spine_thoracic': (-8.769, -4.686, 9.329),
-        'neck': (22.602, 0.0, -4.986), 'head': (9.687, 0.0), 'right_clavicle': (2.356, 8.139),
-        'right_shoulder': (56.181, 2.633, 10.928), 'right_elbow': (32.422, 18.28),
-        'right_wrist': (-1.166, -20.604),
+        'spine_lumbar': (6.991, -13.962, 9.62), 'spine_thoracic': (-8.574, -4.503, 9.172),
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.805, 7.889),
+        'right_shoulder': (56.424, 2.109, 11.17), 'right_elbow': (33.021, 18.456),
+        'right_wrist': (-1.143, -21.156),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (0.714, -18.592, 10.926), 'spine_thoracic': (-13.311, -8.489, 12.712),
-        'neck': (27.356, 0.0, -9.264), 'head': (11.724, 0.0), 'right_clavicle': (11.635, 12.561),
-        'right_shoulder': (51.239, 10.326, 14.88), 'right_elbow': (24.893, 23.851),
-        'right_wrist': (-0.083, -22.642),
+        'spine_lumbar': (4.653, -17.322, 9.964), 'spine_thoracic': (-11.118, -6.994, 10.014),
+        'neck': (25.102, 0.227, -7.166), 'head': (9.909, -1.192), 'right_clavicle': (6.371, 8.214),
+        'right_shoulder': (53.582, 4.933, 12.4), 'right_elbow': (31.466, 20.72),
+        'right_wrist': (-0.462, -23.074),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
-        'neck': (28.617, 0.0, -10.397), 'head': (12.264, 0.0), 'right_clavicle': (19.261, 14.94),
-        'right_shoulder': (51.77, 12.554, 21.247), 'right_elbow': (23.072, 31.064),
-        'right_wrist': (2.255, -25.752),
+        'spine_lumbar': (1.083, -20.0, 11.013), 'spine_thoracic': (-14.01, -10.0, 13.251),
+        'neck': (27.186, -0.08, -10.483), 'head': (12.176, -1.195),
+        'right_clavicle': (17.499, 10.792), 'right_shoulder': (51.841, 10.248, 20.516),
+        'right_elbow': (27.897, 30.007), 'right_wrist': (3.167, -27.67),
     })
     human.KeyJoints(35.4, {
-        'right_clavicle': (12.442, 6.769), 'right_shoulder': (47.177, 4.321, 15.11),
-        'right_elbow': (28.404, 23.577), 'right_wrist': (0.092, -23.389),
+        'spine_lumbar': (-0.593, -20.0, 11.483), 'spine_thoracic': (-14.437, -9.872, 14.056),
+        'neck': (27.832, -0.075, -10.814), 'head': (12.826, -1.196),
+        'right_clavicle': (18.758, 11.414), 'right_shoulder': (50.594, 10.271, 21.696),
+        'right_elbow': (27.596, 31.234), 'right_wrist': (3.725, -28.249),
     })
     human.KeyJoints(35.5, {
-        'right_clavicle': (-8.023, 13.432), 'right_shoulder': (47.528, 15.153, 4.305),
-        'right_elbow': (21.512, 13.917), 'right_wrist': (-2.324, -7.45),
+        'spine_lumbar': (2.962, -12.877, 11.305), 'spine_thoracic': (-11.814, -0.973, 11.403),
+        'neck': (26.13, 0.331, -7.016), 'head': (11.157, -1.19), 'right_clavicle': (6.131, 9.05),
+        'right_shoulder': (49.911, 4.661, 12.326), 'right_elbow': (31.677, 21.02),
+        'right_wrist': (-0.484, -22.93),
     })
     human.KeyJoints(35.6, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.88, 17.809, 4.221),
-        'right_elbow': (16.285, 13.631), 'right_wrist': (-1.844, -4.216),
+        'spine_lumbar': (7.442, -13.559, 10.022), 'spine_thoracic': (-9.203, -3.999, 9.584),
+        'neck': (24.043, 0.399, -5.385), 'head': (8.32, -1.198), 'right_clavicle': (3.273, 8.059),
+        'right_shoulder': (55.666, 3.128, 11.389), 'right_elbow': (33.507, 18.923),
+        'right_wrist': (-1.089, -19.949),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'right_clavicle': (-3.48, 14.742), 'right_shoulder': (48.909, 16.288, 7.049),
-        'right_elbow': (18.788, 16.337), 'right_wrist': (-1.468, -9.657),
+        'spine_lumbar': (6.806, -14.638, 10.067), 'spine_thoracic': (-9.912, -4.956, 9.684),
+        'neck': (24.419, 0.323, -6.121), 'head': (8.844, -1.196), 'right_clavicle': (3.894, 8.064),
+        'right_shoulder': (54.814, 3.73, 11.454), 'right_elbow': (33.161, 19.162),
+        'right_wrist': (-0.997, -20.31),
     })
     human.KeyJoints(35.8, {
-        'right_clavicle': (17.343, 14.844), 'right_shoulder': (51.22, 12.585, 19.406),
-        'right_elbow': (22.456, 29.016), 'right_wrist': (1.648, -24.341),
+        'spine_lumbar': (2.378, -19.827, 10.405), 'spine_thoracic': (-13.096, -9.696, 11.681),
+        'neck': (26.393, 0.037, -9.218), 'head': (11.389, -1.193),
+        'right_clavicle': (13.008, 9.494), 'right_shoulder': (52.15, 8.418, 17.016),
+        'right_elbow': (29.393, 26.156), 'right_wrist': (1.554, -25.621),
     })
     human.KeyJoints(35.9, {
-        'right_clavicle': (19.958, 12.399), 'right_shoulder': (50.992, 9.491, 21.082),
-        'right_elbow': (25.255, 30.577), 'right_wrist': (2.16, -26.962),
+        'spine_lumbar': (0.579, -20.0, 11.464), 'spine_thoracic': (-14.458, -10.0, 14.107),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.275),
     })
     human.KeyJoints(36.0, {
-        'right_clavicle': (0.882, 8.698), 'right_shoulder': (46.222, 7.984, 8.501),
-        'right_elbow': (26.495, 17.274), 'right_wrist': (-1.654, -14.769),
+        'spine_lumbar': (-1.423, -16.507, 10.979), 'spine_thoracic': (-12.934, -4.61, 12.149),
+        'neck': (27.482, 0.335, -7.763), 'head': (12.524, -1.192),
+        'right_clavicle': (10.992, 9.988), 'right_shoulder': (48.654, 5.545, 16.058),
+        'right_elbow': (29.52, 24.972), 'right_wrist': (1.23, -26.611),
     })
     human.KeyJoints(36.1, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.278, 17.757, 4.037),
-        'right_elbow': (17.52, 13.706), 'right_wrist': (-2.063, -4.876),
+        'spine_lumbar': (6.7, -12.674, 11.022), 'spine_thoracic': (-10.721, -1.697, 10.684),
+        'neck': (24.81, 0.301, -6.492), 'head': (9.463, -1.194), 'right_clavicle': (4.169, 8.507),
+        'right_shoulder': (53.282, 4.502, 11.199), 'right_elbow': (32.996, 19.49),
+        'right_wrist': (-1.102, -20.605),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'right_clavicle': (-9.342, 15.0), 'right_shoulder': (49.672, 17.708, 4.508),
-        'right_elbow': (16.698, 13.859), 'right_wrist': (-1.789, -4.855),
+        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.851, -4.508, 9.332),
+        'neck': (23.841, 0.425, -5.084), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
+        'right_shoulder': (56.129, 2.769, 11.46), 'right_elbow': (33.607, 18.804),
+        'right_wrist': (-1.076, -19.831),
     })
     human.KeyJoints(36.3, {
-        'right_clavicle': (10.154, 14.39), 'right_shoulder': (49.709, 13.309, 14.392),
-        'right_elbow': (21.4, 23.766), 'right_wrist': (0.083, -19.753),
+        'spine_lumbar': (4.313, -18.084, 10.081), 'spine_thoracic': (-11.789, -7.864, 10.375),
+        'neck': (25.377, 0.155, -7.816), 'head': (10.331, -1.191), 'right_clavicle': (7.967, 8.441),
+        'right_shoulder': (52.943, 6.123, 13.47), 'right_elbow': (31.281, 22.044),
+        'right_wrist': (-0.029, -22.963),
     })
     human.KeyJoints(36.4, {
-        'right_clavicle': (19.188, 14.991), 'right_shoulder': (51.81, 12.639, 21.257),
-        'right_elbow': (22.961, 31.071), 'right_wrist': (2.265, -25.662),
+        'spine_lumbar': (0.828, -20.0, 11.215), 'spine_thoracic': (-14.227, -10.0, 13.664),
+        'neck': (27.375, -0.119, -10.868), 'head': (12.362, -1.196),
+        'right_clavicle': (18.48, 11.094), 'right_shoulder': (51.685, 10.69, 21.281),
+        'right_elbow': (27.631, 30.856), 'right_wrist': (3.517, -27.991),
     })
     human.KeyJoints(36.5, {
-        'right_clavicle': (12.425, 6.768), 'right_shoulder': (47.173, 4.321, 15.099),
-        'right_elbow': (28.404, 23.566), 'right_wrist': (0.088, -23.377),
+        'spine_lumbar': (-1.494, -19.839, 11.331), 'spine_thoracic': (-14.226, -9.189, 13.68),
+        'neck': (27.93, 0.042, -10.057), 'head': (12.938, -1.195),
+        'right_clavicle': (17.393, 11.22), 'right_shoulder': (49.923, 9.107, 20.817),
+        'right_elbow': (27.942, 30.182), 'right_wrist': (3.341, -28.101),
     })
     human.KeyJoints(36.6, {
-        'right_clavicle': (-8.614, 13.878), 'right_shoulder': (47.772, 15.837, 4.089),
-        'right_elbow': (20.868, 13.767), 'right_wrist': (-2.328, -6.894),
+        'spine_lumbar': (4.426, -12.381, 11.393), 'spine_thoracic': (-11.568, -0.599, 11.285),
+        'neck': (25.685, 0.305, -6.942), 'head': (10.673, -1.191), 'right_clavicle': (5.259, 8.886),
+        'right_shoulder': (50.783, 4.721, 11.683), 'right_elbow': (32.229, 20.327),
+        'right_wrist': (-0.796, -21.915),
     })
     human.KeyJoints(36.7, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.931, 17.81, 4.256),
-        'right_elbow': (16.187, 13.614), 'right_wrist': (-1.816, -4.167),
+        'spine_lumbar': (7.526, -13.732, 9.791), 'spine_thoracic': (-8.85, -4.493, 9.334),
+        'neck': (23.84, 0.426, -5.082), 'head': (8.068, -1.198), 'right_clavicle': (3.075, 7.964),
+        'right_shoulder': (56.13, 2.769, 11.459), 'right_elbow': (33.609, 18.805),
+        'right_wrist': (-1.077, -19.83),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'right_clavicle': (-0.285, 14.538), 'right_shoulder': (48.901, 15.447, 8.599),
-        'right_elbow': (19.442, 17.868), 'right_wrist': (-1.219, -12.076),
+        'spine_lumbar': (6.284, -15.351, 10.095), 'spine_thoracic': (-10.42, -5.445, 9.827),
+        'neck': (24.583, 0.289, -6.449), 'head': (9.16, -1.194), 'right_clavicle': (4.572, 8.111),
+        'right_shoulder': (54.242, 4.267, 11.544), 'right_elbow': (32.81, 19.552),
+        'right_wrist': (-0.887, -20.764),
     })
     human.KeyJoints(36.9, {
-        'right_clavicle': (18.414, 14.937), 'right_shoulder': (51.555, 12.601, 20.425),
-        'right_elbow': (22.699, 30.129), 'right_wrist': (1.99, -25.071),
+        'spine_lumbar': (1.857, -19.995, 10.6), 'spine_thoracic': (-13.456, -9.938, 12.233),
+        'neck': (26.698, -0.002, -9.666), 'head': (11.693, -1.194),
+        'right_clavicle': (14.709, 9.954), 'right_shoulder': (52.02, 9.124, 18.317),
+        'right_elbow': (28.811, 27.601), 'right_wrist': (2.147, -26.431),
     })
     human.KeyJoints(37.0, {
-        'right_clavicle': (19.631, 10.53), 'right_shoulder': (50.236, 7.457, 20.397),
-        'right_elbow': (26.485, 29.593), 'right_wrist': (1.889, -27.04),
+        'spine_lumbar': (0.517, -20.0, 11.495), 'spine_thoracic': (-14.479, -10.0, 14.139),
+        'neck': (27.604, -0.168, -11.338), 'head': (12.586, -1.197),
+        'right_clavicle': (19.417, 11.397), 'right_shoulder': (51.369, 11.127, 21.997),
+        'right_elbow': (27.381, 31.669), 'right_wrist': (3.841, -28.278),
     })
     human.KeyJoints(37.1, {
-        'right_clavicle': (-2.432, 10.123), 'right_shoulder': (46.39, 10.152, 6.818),
-        'right_elbow': (25.183, 15.852), 'right_wrist': (-1.998, -12.136),
+        'spine_lumbar': (-0.171, -15.017, 11.04), 'spine_thoracic': (-12.476, -3.008, 11.78),
+        'neck': (27.071, 0.358, -7.367), 'head': (12.112, -1.191), 'right_clavicle': (8.97, 9.579),
+        'right_shoulder': (48.802, 4.93, 14.496), 'right_elbow': (30.259, 23.311),
+        'right_wrist': (0.525, -25.441),
     })
     human.KeyJoints(37.2, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.551, 17.786, 4.088),
-        'right_elbow': (16.953, 13.693), 'right_wrist': (-1.976, -4.57),
+        'spine_lumbar': (7.03, -12.983, 10.738), 'spine_thoracic': (-10.302, -2.412, 10.369),
+        'neck': (24.554, 0.323, -6.194), 'head': (9.097, -1.195), 'right_clavicle': (3.908, 8.368),
+        'right_shoulder': (54.085, 4.185, 11.204), 'right_elbow': (33.162, 19.315),
+        'right_wrist': (-1.11, -20.374),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'right_clavicle': (-8.143, 15.0), 'right_shoulder': (49.288, 17.488, 4.984),
-        'right_elbow': (17.483, 14.325), 'right_wrist': (-1.736, -6.024),
+        'spine_lumbar': (7.442, -13.84, 9.824), 'spine_thoracic': (-8.979, -4.549, 9.375),
+        'neck': (23.915, 0.413, -5.209), 'head': (8.156, -1.198), 'right_clavicle': (3.164, 7.975),
+        'right_shoulder': (55.969, 2.883, 11.459), 'right_elbow': (33.559, 18.837),
+        'right_wrist': (-1.07, -19.879),
     })
     human.KeyJoints(37.4, {
-        'right_clavicle': (13.105, 14.511), 'right_shoulder': (50.218, 12.915, 16.311),
-        'right_elbow': (21.862, 25.763), 'right_wrist': (0.641, -21.745),
+        'spine_lumbar': (3.629, -18.863, 10.14), 'spine_thoracic': (-12.251, -8.63, 10.723),
+        'neck': (25.711, 0.114, -8.289), 'head': (10.707, -1.191), 'right_clavicle': (9.529, 8.71),
+        'right_shoulder': (52.6, 6.878, 14.503), 'right_elbow': (30.662, 23.282),
+        'right_wrist': (0.429, -23.836),
     })
     human.KeyJoints(37.5, {
-        'right_clavicle': (19.389, 14.834), 'right_shoulder': (51.683, 12.391, 21.245),
-        'right_elbow': (23.3, 31.051), 'right_wrist': (2.249, -25.874),
+        'spine_lumbar': (0.673, -20.0, 11.364), 'spine_thoracic': (-14.367, -10.0, 13.933),
+        'neck': (27.497, -0.148, -11.136), 'head': (12.481, -1.196),
+        'right_clavicle': (19.066, 11.276), 'right_shoulder': (51.543, 10.967, 21.729),
+        'right_elbow': (27.472, 31.361), 'right_wrist': (3.721, -28.172),
     })
     human.KeyJoints(37.6, {
-        'right_clavicle': (8.691, 6.737), 'right_shoulder': (46.533, 4.571, 12.826),
-        'right_elbow': (28.328, 21.271), 'right_wrist': (-0.574, -20.735),
+        'spine_lumbar': (-2.002, -19.14, 11.161), 'spine_thoracic': (-13.882, -7.951, 13.185),
+        'neck': (27.906, 0.161, -9.214), 'head': (12.929, -1.194),
+        'right_clavicle': (15.493, 10.886), 'right_shoulder': (49.307, 7.788, 19.469),
+        'right_elbow': (28.359, 28.665), 'right_wrist': (2.747, -27.885),
     })
     human.KeyJoints(37.7, {
-        'right_clavicle': (-9.366, 14.473), 'right_shoulder': (48.296, 16.81, 3.976),
-        'right_elbow': (19.595, 13.688), 'right_wrist': (-2.316, -5.99),
+        'spine_lumbar': (5.499, -12.381, 11.349), 'spine_thoracic': (-11.331, -0.753, 11.135),
+        'neck': (25.344, 0.286, -6.888), 'head': (10.21, -1.192), 'right_clavicle': (4.748, 8.756),
+        'right_shoulder': (51.653, 4.73, 11.32), 'right_elbow': (32.586, 19.919),
+        'right_wrist': (-0.98, -21.268),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.932, 17.81, 4.257),
-        'right_elbow': (16.185, 13.613), 'right_wrist': (-1.815, -4.166),
+        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
+        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
+        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
+        'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(37.9, {
-        'right_clavicle': (3.207, 14.393), 'right_shoulder': (49.022, 14.618, 10.4),
-        'right_elbow': (20.132, 19.675), 'right_wrist': (-0.879, -14.705),
+        'spine_lumbar': (5.688, -16.213, 10.08), 'spine_thoracic': (-10.842, -6.183, 9.94),
+        'neck': (24.818, 0.246, -6.875), 'head': (9.511, -1.193), 'right_clavicle': (5.454, 8.157),
+        'right_shoulder': (53.808, 4.782, 12.015), 'right_elbow': (32.38, 20.169),
+        'right_wrist': (-0.682, -21.393),
     })
     human.KeyJoints(38.0, {
-        'right_clavicle': (18.962, 14.983), 'right_shoulder': (51.749, 12.634, 21.024),
-        'right_elbow': (22.866, 30.796), 'right_wrist': (2.191, -25.483),
+        'spine_lumbar': (1.414, -20.0, 10.824), 'spine_thoracic': (-13.77, -10.0, 12.794),
+        'neck': (26.972, -0.043, -10.105), 'head': (11.965, -1.194),
+        'right_clavicle': (16.268, 10.418), 'right_shoulder': (51.92, 9.753, 19.537),
+        'right_elbow': (28.291, 28.943), 'right_wrist': (2.71, -27.151),
     })
     human.KeyJoints(38.1, {
-        'right_clavicle': (18.157, 8.729), 'right_shoulder': (49.234, 5.647, 19.09),
-        'right_elbow': (27.55, 27.98), 'right_wrist': (1.41, -26.753),
+        'spine_lumbar': (0.138, -20.0, 11.522), 'spine_thoracic': (-14.484, -10.0, 14.151),
+        'neck': (27.695, -0.143, -11.21), 'head': (12.68, -1.197),
+        'right_clavicle': (19.294, 11.439), 'right_shoulder': (51.084, 10.91, 21.956),
+        'right_elbow': (27.426, 31.602), 'right_wrist': (3.829, -28.293),
     })
     human.KeyJoints(38.2, {
-        'right_clavicle': (-5.198, 11.577), 'right_shoulder': (46.782, 12.344, 5.483),
-        'right_elbow': (23.738, 14.784), 'right_wrist': (-2.244, -9.91),
+        'spine_lumbar': (1.384, -13.747, 11.17), 'spine_thoracic': (-12.105, -1.735, 11.552),
+        'neck': (26.604, 0.352, -7.143), 'head': (11.639, -1.191), 'right_clavicle': (7.333, 9.27),
+        'right_shoulder': (49.229, 4.694, 13.239), 'right_elbow': (31.013, 21.984),
+        'right_wrist': (-0.054, -24.134),
     })
     human.KeyJoints(38.3, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.748, 17.802, 4.154),
-        'right_elbow': (16.548, 13.664), 'right_wrist': (-1.904, -4.354),
+        'spine_lumbar': (7.275, -13.283, 10.38), 'spine_thoracic': (-9.752, -3.223, 9.974),
+        'neck': (24.352, 0.356, -5.859), 'head': (8.739, -1.196), 'right_clavicle': (3.584, 8.209),
+        'right_shoulder': (54.919, 3.678, 11.283), 'right_elbow': (33.343, 19.112),
+        'right_wrist': (-1.103, -20.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'right_clavicle': (-6.193, 14.956), 'right_shoulder': (49.024, 17.037, 5.81),
-        'right_elbow': (18.197, 15.129), 'right_wrist': (-1.637, -7.648),
+        'spine_lumbar': (7.213, -14.122, 9.924), 'spine_thoracic': (-9.338, -4.679, 9.496),
+        'neck': (24.108, 0.379, -5.562), 'head': (8.415, -1.197), 'right_clavicle': (3.418, 8.009),
+        'right_shoulder': (55.521, 3.202, 11.456), 'right_elbow': (33.418, 18.94),
+        'right_wrist': (-1.05, -20.024),
     })
     human.KeyJoints(38.5, {
-        'right_clavicle': (15.519, 14.673), 'right_shoulder': (50.748, 12.686, 18.015),
-        'right_elbow': (22.205, 27.549), 'right_wrist': (1.181, -23.269),
+        'spine_lumbar': (2.981, -19.448, 10.247), 'spine_thoracic': (-12.688, -9.252, 11.162),
+        'neck': (26.058, 0.076, -8.754), 'head': (11.055, -1.192),
+        'right_clavicle': (11.229, 9.065), 'right_shoulder': (52.338, 7.651, 15.701),
+        'right_elbow': (30.026, 24.67), 'right_wrist': (0.962, -24.733),
     })
     human.KeyJoints(38.6, {
-        'right_clavicle': (19.904, 13.939), 'right_shoulder': (51.462, 11.278, 21.302),
-        'right_elbow': (24.103, 30.995), 'right_wrist': (2.254, -26.391),
+        'spine_lumbar': (0.598, -20.0, 11.442), 'spine_thoracic': (-14.438, -10.0, 14.07),
+        'neck': (27.56, -0.163, -11.276), 'head': (12.542, -1.197),
+        'right_clavicle': (19.352, 11.366), 'right_shoulder': (51.464, 11.107, 21.947),
+        'right_elbow': (27.396, 31.608), 'right_wrist': (3.819, -28.254),
     })
     human.KeyJoints(38.7, {
-        'right_clavicle': (4.715, 7.526), 'right_shoulder': (46.174, 6.07, 10.566),
-        'right_elbow': (27.557, 19.122), 'right_wrist': (-1.171, -17.735),
+        'spine_lumbar': (-2.076, -17.976, 11.033), 'spine_thoracic': (-13.432, -6.356, 12.646),
+        'neck': (27.774, 0.268, -8.395), 'head': (12.81, -1.193),
+        'right_clavicle': (13.272, 10.455), 'right_shoulder': (48.857, 6.536, 17.808),
+        'right_elbow': (28.874, 26.852), 'right_wrist': (2.011, -27.443),
     })
     human.KeyJoints(38.8, {
-        'right_clavicle': (-9.824, 14.852), 'right_shoulder': (48.848, 17.473, 4.0),
-        'right_elbow': (18.406, 13.699), 'right_wrist': (-2.193, -5.333),
+        'spine_lumbar': (6.231, -12.402, 11.247), 'spine_thoracic': (-11.06, -1.087, 10.943),
+        'neck': (25.068, 0.289, -6.712), 'head': (9.826, -1.193), 'right_clavicle': (4.4, 8.632),
+        'right_shoulder': (52.503, 4.718, 11.207), 'right_elbow': (32.834, 19.654),
+        'right_wrist': (-1.066, -20.852),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
-        'right_clavicle': (-9.892, 15.0), 'right_shoulder': (49.888, 17.794, 4.297),
-        'right_elbow': (16.272, 13.653), 'right_wrist': (-1.811, -4.281),
+        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
+        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
+        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
+        'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(39.0, {
-        'right_clavicle': (6.748, 14.347), 'right_shoulder': (49.29, 13.89, 12.357),
-        'right_elbow': (20.803, 21.668), 'right_wrist': (-0.444, -17.323),
+        'spine_lumbar': (5.018, -17.157, 10.068), 'spine_thoracic': (-11.308, -7.009, 10.116),
+        'neck': (25.088, 0.201, -7.336), 'head': (9.908, -1.192), 'right_clavicle': (6.582, 8.26),
+        'right_shoulder': (53.36, 5.407, 12.629), 'right_elbow': (31.866, 20.989),
+        'right_wrist': (-0.403, -22.13),
     })
     human.KeyJoints(39.1, {
-        'right_clavicle': (19.153, 14.999), 'right_shoulder': (51.821, 12.652, 21.248),
-        'right_elbow': (22.931, 31.048), 'right_wrist': (2.267, -25.633),
+        'spine_lumbar': (1.077, -20.0, 11.02), 'spine_thoracic': (-14.019, -10.0, 13.266),
+        'neck': (27.193, -0.081, -10.499), 'head': (12.183, -1.195),
+        'right_clavicle': (17.537, 10.804), 'right_shoulder': (51.827, 10.27, 20.546),
+        'right_elbow': (27.901, 30.041), 'right_wrist': (3.179, -27.665),
     })
     human.KeyJoints(39.2, {
-        'right_clavicle': (15.689, 7.309), 'right_shoulder': (48.142, 4.347, 17.265),
-        'right_elbow': (28.316, 25.893), 'right_wrist': (0.78, -25.443),
+        'spine_lumbar': (-0.625, -20.0, 11.479), 'spine_thoracic': (-14.432, -9.858, 14.045),
+        'neck': (27.836, -0.071, -10.791), 'head': (12.83, -1.196),
+        'right_clavicle': (18.721, 11.409), 'right_shoulder': (50.571, 10.236, 21.674),
+        'right_elbow': (27.607, 31.206), 'right_wrist': (3.715, -28.244),
     })
     human.KeyJoints(39.3, {
-        'right_clavicle': (-7.168, 12.817), 'right_shoulder': (47.25, 14.223, 4.651),
-        'right_elbow': (22.295, 14.161), 'right_wrist': (-2.317, -8.21),
+        'spine_lumbar': (2.98, -12.869, 11.306), 'spine_thoracic': (-11.811, -0.966, 11.402),
+        'neck': (26.125, 0.331, -7.015), 'head': (11.151, -1.19), 'right_clavicle': (6.119, 9.048),
+        'right_shoulder': (49.92, 4.662, 12.317), 'right_elbow': (31.684, 21.011),
+        'right_wrist': (-0.488, -22.917),
     })
     human.KeyJoints(39.4, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.872, 17.809, 4.216),
-        'right_elbow': (16.3, 13.634), 'right_wrist': (-1.848, -4.224),
+        'spine_lumbar': (7.44, -13.555, 10.026), 'spine_thoracic': (-9.209, -3.99, 9.589),
+        'neck': (24.047, 0.398, -5.391), 'head': (8.325, -1.198), 'right_clavicle': (3.277, 8.06),
+        'right_shoulder': (55.657, 3.135, 11.387), 'right_elbow': (33.505, 18.926),
+        'right_wrist': (-1.089, -19.951),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'right_clavicle': (-3.53, 14.746), 'right_shoulder': (48.91, 16.301, 7.025),
-        'right_elbow': (18.777, 16.314), 'right_wrist': (-1.471, -9.619),
+        'spine_lumbar': (6.814, -14.628, 10.065), 'spine_thoracic': (-9.902, -4.95, 9.681),
+        'neck': (24.413, 0.324, -6.111), 'head': (8.836, -1.196), 'right_clavicle': (3.884, 8.063),
+        'right_shoulder': (54.826, 3.721, 11.454), 'right_elbow': (33.166, 19.157),
+        'right_wrist': (-0.998, -20.304),
     })
     human.KeyJoints(39.6, {
-        'right_clavicle': (17.319, 14.842), 'right_shoulder': (51.213, 12.585, 19.386),
-        'right_elbow': (22.452, 28.994), 'right_wrist': (1.641, -24.326),
+        'spine_lumbar': (2.388, -19.823, 10.402), 'spine_thoracic': (-13.09, -9.691, 11.672),
+        'neck': (26.387, 0.038, -9.211), 'head': (11.384, -1.193),
+        'right_clavicle': (12.979, 9.487), 'right_shoulder': (52.152, 8.406, 16.994),
+        'right_elbow': (29.403, 26.131), 'right_wrist': (1.544, -25.606),
     })
     human.KeyJoints(39.7, {
-        'right_clavicle': (19.958, 12.43), 'right_shoulder': (51.002, 9.526, 21.09),
-        'right_elbow': (25.234, 30.59), 'right_wrist': (2.163, -26.954),
+        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
     })
     human.KeyJoints(39.8, {
-        'right_clavicle': (0.944, 8.675), 'right_shoulder': (46.22, 7.948, 8.533),
-        'right_elbow': (26.516, 17.302), 'right_wrist': (-1.647, -14.817),
+        'spine_lumbar': (-1.437, -16.532, 10.979), 'spine_thoracic': (-12.941, -4.638, 12.156),
+        'neck': (27.487, 0.335, -7.771), 'head': (12.529, -1.192),
+        'right_clavicle': (11.027, 9.995), 'right_shoulder': (48.653, 5.558, 16.085),
+        'right_elbow': (29.508, 25.001), 'right_wrist': (1.242, -26.627),
     })
     human.KeyJoints(39.9, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.272, 17.756, 4.036),
-        'right_elbow': (17.531, 13.706), 'right_wrist': (-2.065, -4.882),
+        'spine_lumbar': (6.694, -12.669, 11.026), 'spine_thoracic': (-10.728, -1.685, 10.689),
+        'neck': (24.814, 0.3, -6.496), 'head': (9.469, -1.194), 'right_clavicle': (4.173, 8.509),
+        'right_shoulder': (53.269, 4.507, 11.199), 'right_elbow': (32.994, 19.492),
+        'right_wrist': (-1.102, -20.608),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'right_clavicle': (-9.356, 15.0), 'right_shoulder': (49.678, 17.71, 4.502),
-        'right_elbow': (16.687, 13.854), 'right_wrist': (-1.79, -4.841),
+        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.85, -4.508, 9.331),
+        'neck': (23.84, 0.425, -5.083), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
+        'right_shoulder': (56.13, 2.769, 11.46), 'right_elbow': (33.608, 18.804),
+        'right_wrist': (-1.076, -19.831),
     })
     human.KeyJoints(40.1, {
-        'right_clavicle': (10.1, 14.389), 'right_shoulder': (49.701, 13.317, 14.358),
-        'right_elbow': (21.391, 23.732), 'right_wrist': (0.073, -19.716),
+        'spine_lumbar': (4.324, -18.069, 10.081), 'spine_thoracic': (-11.781, -7.851, 10.37),
+        'neck': (25.373, 0.156, -7.808), 'head': (10.324, -1.191), 'right_clavicle': (7.942, 8.438),
+        'right_shoulder': (52.95, 6.11, 13.454), 'right_elbow': (31.291, 22.025),
+        'right_wrist': (-0.035, -22.948),
     })
     human.KeyJoints(40.2, {
-        'right_clavicle': (19.186, 14.992), 'right_shoulder': (51.811, 12.641, 21.258),
-        'right_elbow': (22.958, 31.071), 'right_wrist': (2.266, -25.661),
+        'spine_lumbar': (0.831, -20.0, 11.212), 'spine_thoracic': (-14.224, -10.0, 13.658),
+        'neck': (27.372, -0.119, -10.862), 'head': (12.359, -1.196),
+        'right_clavicle': (18.468, 11.09), 'right_shoulder': (51.688, 10.684, 21.271),
+        'right_elbow': (27.634, 30.845), 'right_wrist': (3.512, -27.987),
     })
     human.KeyJoints(40.3, {
-        'right_clavicle': (12.486, 6.774), 'right_shoulder': (47.188, 4.32, 15.138),
-        'right_elbow': (28.404, 23.606), 'right_wrist': (0.1, -23.419),
+        'spine_lumbar': (-1.48, -19.847, 11.334), 'spine_thoracic': (-14.231, -9.206, 13.688),
+        'neck': (27.929, 0.04, -10.072), 'head': (12.937, -1.195),
+        'right_clavicle': (17.421, 11.225), 'right_shoulder': (49.934, 9.129, 20.837),
+        'right_elbow': (27.936, 30.205), 'right_wrist': (3.35, -28.103),
     })
     human.KeyJoints(40.4, {
-        'right_clavicle': (-8.595, 13.864), 'right_shoulder': (47.763, 15.815, 4.095),
-        'right_elbow': (20.891, 13.771), 'right_wrist': (-2.328, -6.913),
+        'spine_lumbar': (4.406, -12.383, 11.392), 'spine_thoracic': (-11.572, -0.6, 11.288),
+        'neck': (25.691, 0.306, -6.942), 'head': (10.681, -1.191), 'right_clavicle': (5.27, 8.889),
+        'right_shoulder': (50.768, 4.721, 11.69), 'right_elbow': (32.222, 20.335),
+        'right_wrist': (-0.793, -21.928),
     })
     human.KeyJoints(40.5, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.931, 17.81, 4.255),
-        'right_elbow': (16.187, 13.614), 'right_wrist': (-1.816, -4.167),
+        'spine_lumbar': (7.525, -13.731, 9.793), 'spine_thoracic': (-8.852, -4.49, 9.336),
+        'neck': (23.842, 0.425, -5.084), 'head': (8.069, -1.198), 'right_clavicle': (3.077, 7.964),
+        'right_shoulder': (56.127, 2.772, 11.458), 'right_elbow': (33.608, 18.806),
+        'right_wrist': (-1.077, -19.831),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'right_clavicle': (-0.342, 14.541), 'right_shoulder': (48.9, 15.462, 8.571),
-        'right_elbow': (19.431, 17.84), 'right_wrist': (-1.224, -12.033),
+        'spine_lumbar': (6.293, -15.338, 10.095), 'spine_thoracic': (-10.412, -5.434, 9.825),
+        'neck': (24.579, 0.289, -6.442), 'head': (9.154, -1.194), 'right_clavicle': (4.56, 8.111),
+        'right_shoulder': (54.25, 4.259, 11.538), 'right_elbow': (32.817, 19.543),
+        'right_wrist': (-0.89, -20.755),
     })
     human.KeyJoints(40.7, {
-        'right_clavicle': (18.401, 14.936), 'right_shoulder': (51.551, 12.601, 20.411),
-        'right_elbow': (22.696, 30.113), 'right_wrist': (1.985, -25.062),
+        'spine_lumbar': (1.865, -19.995, 10.597), 'spine_thoracic': (-13.451, -9.936, 12.224),
+        'neck': (26.693, -0.002, -9.659), 'head': (11.688, -1.194),
+        'right_clavicle': (14.682, 9.946), 'right_shoulder': (52.022, 9.113, 18.296),
+        'right_elbow': (28.821, 27.577), 'right_wrist': (2.137, -26.418),
     })
     human.KeyJoints(40.8, {
-        'right_clavicle': (19.65, 10.564), 'right_shoulder': (50.252, 7.492, 20.415),
-        'right_elbow': (26.465, 29.616), 'right_wrist': (1.896, -27.042),
+        'spine_lumbar': (0.52, -20.0, 11.494), 'spine_thoracic': (-14.479, -10.0, 14.139),
+        'neck': (27.603, -0.168, -11.339), 'head': (12.585, -1.197),
+        'right_clavicle': (19.418, 11.397), 'right_shoulder': (51.372, 11.128, 21.997),
+        'right_elbow': (27.38, 31.669), 'right_wrist': (3.841, -28.278),
     })
     human.KeyJoints(40.9, {
-        'right_clavicle': (-2.382, 10.099), 'right_shoulder': (46.386, 10.116, 6.842),
-        'right_elbow': (25.206, 15.872), 'right_wrist': (-1.993, -12.176),
+        'spine_lumbar': (-0.196, -15.04, 11.039), 'spine_thoracic': (-12.484, -3.032, 11.785),
+        'neck': (27.078, 0.358, -7.373), 'head': (12.119, -1.191), 'right_clavicle': (9.001, 9.585),
+        'right_shoulder': (48.798, 4.937, 14.52), 'right_elbow': (30.246, 23.336),
+        'right_wrist': (0.535, -25.462),
     })
     human.KeyJoints(41.0, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.547, 17.786, 4.087),
-        'right_elbow': (16.961, 13.693), 'right_wrist': (-1.977, -4.575),
+        'spine_lumbar': (7.025, -12.978, 10.743), 'spine_thoracic': (-10.31, -2.399, 10.375),
+        'neck': (24.559, 0.322, -6.2), 'head': (9.103, -1.195), 'right_clavicle': (3.913, 8.371),
+        'right_shoulder': (54.07, 4.192, 11.203), 'right_elbow': (33.159, 19.318),
+        'right_wrist': (-1.11, -20.378),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'right_clavicle': (-8.169, 15.0), 'right_shoulder': (49.295, 17.493, 4.973),
-        'right_elbow': (17.469, 14.315), 'right_wrist': (-1.738, -6.0),
+        'spine_lumbar': (7.444, -13.837, 9.823), 'spine_thoracic': (-8.975, -4.548, 9.373),
+        'neck': (23.912, 0.414, -5.206), 'head': (8.153, -1.198), 'right_clavicle': (3.161, 7.974),
+        'right_shoulder': (55.974, 2.879, 11.459), 'right_elbow': (33.56, 18.836),
+        'right_wrist': (-1.071, -19.878),
     })
     human.KeyJoints(41.2, {
-        'right_clavicle': (13.06, 14.509), 'right_shoulder': (50.209, 12.92, 16.28),
-        'right_elbow': (21.855, 25.73), 'right_wrist': (0.632, -21.716),
+        'spine_lumbar': (3.64, -18.851, 10.139), 'spine_thoracic': (-12.244, -8.618, 10.717),
+        'neck': (25.705, 0.115, -8.281), 'head': (10.701, -1.191), 'right_clavicle': (9.501, 8.704),
+        'right_shoulder': (52.605, 6.865, 14.484), 'right_elbow': (30.673, 23.26),
+        'right_wrist': (0.421, -23.821),
     })
     human.KeyJoints(41.3, {
-        'right_clavicle': (19.384, 14.839), 'right_shoulder': (51.686, 12.398, 21.245),
-        'right_elbow': (23.293, 31.052), 'right_wrist': (2.249, -25.869),
+        'spine_lumbar': (0.675, -20.0, 11.362), 'spine_thoracic': (-14.366, -10.0, 13.929),
+        'neck': (27.496, -0.147, -11.132), 'head': (12.48, -1.196),
+        'right_clavicle': (19.059, 11.274), 'right_shoulder': (51.545, 10.964, 21.724),
+        'right_elbow': (27.473, 31.355), 'right_wrist': (3.718, -28.17),
     })
     human.KeyJoints(41.4, {
-        'right_clavicle': (8.757, 6.729), 'right_shoulder': (46.542, 4.556, 12.865),
-        'right_elbow': (28.335, 21.309), 'right_wrist': (-0.563, -20.783),
+        'spine_lumbar': (-1.997, -19.157, 11.164), 'spine_thoracic': (-13.889, -7.976, 13.194),
+        'neck': (27.907, 0.159, -9.229), 'head': (12.93, -1.194),
+        'right_clavicle': (15.529, 10.893), 'right_shoulder': (49.316, 7.811, 19.495),
+        'right_elbow': (28.352, 28.694), 'right_wrist': (2.759, -27.89),
     })
     human.KeyJoints(41.5, {
-        'right_clavicle': (-9.356, 14.465), 'right_shoulder': (48.286, 16.797, 3.975),
-        'right_elbow': (19.616, 13.688), 'right_wrist': (-2.317, -6.003),
+        'spine_lumbar': (5.483, -12.381, 11.35), 'spine_thoracic': (-11.335, -0.749, 11.138),
+        'neck': (25.35, 0.286, -6.89), 'head': (10.217, -1.192), 'right_clavicle': (4.755, 8.758),
+        'right_shoulder': (51.639, 4.729, 11.325), 'right_elbow': (32.581, 19.924),
+        'right_wrist': (-0.977, -21.277),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.932, 17.81, 4.257),
-        'right_elbow': (16.185, 13.613), 'right_wrist': (-1.815, -4.166),
+        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
+        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
+        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
+        'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(41.7, {
-        'right_clavicle': (3.147, 14.395), 'right_shoulder': (49.019, 14.631, 10.368),
-        'right_elbow': (20.12, 19.642), 'right_wrist': (-0.886, -14.66),
+        'spine_lumbar': (5.699, -16.198, 10.08), 'spine_thoracic': (-10.834, -6.17, 9.938),
+        'neck': (24.814, 0.247, -6.867), 'head': (9.504, -1.193), 'right_clavicle': (5.437, 8.156),
+        'right_shoulder': (53.816, 4.772, 12.006), 'right_elbow': (32.388, 20.157),
+        'right_wrist': (-0.686, -21.382),
     })
     human.KeyJoints(41.8, {
-        'right_clavicle': (18.957, 14.983), 'right_shoulder': (51.747, 12.634, 21.017),
-        'right_elbow': (22.864, 30.789), 'right_wrist': (2.189, -25.478),
+        'spine_lumbar': (1.421, -20.0, 10.82), 'spine_thoracic': (-13.765, -10.0, 12.785),
+        'neck': (26.968, -0.042, -10.098), 'head': (11.961, -1.194),
+        'right_clavicle': (16.244, 10.411), 'right_shoulder': (51.922, 9.744, 19.518),
+        'right_elbow': (28.299, 28.922), 'right_wrist': (2.701, -27.141),
     })
     human.KeyJoints(41.9, {
-        'right_clavicle': (18.188, 8.757), 'right_shoulder': (49.252, 5.674, 19.116),
-        'right_elbow': (27.534, 28.011), 'right_wrist': (1.419, -26.765),
+        'spine_lumbar': (0.149, -20.0, 11.521), 'spine_thoracic': (-14.484, -10.0, 14.151),
+        'neck': (27.692, -0.143, -11.215), 'head': (12.677, -1.197),
+        'right_clavicle': (19.298, 11.438), 'right_shoulder': (51.091, 10.918, 21.957),
+        'right_elbow': (27.424, 31.605), 'right_wrist': (3.829, -28.293),
     })
     human.KeyJoints(42.0, {
-        'right_clavicle': (-5.157, 11.554), 'right_shoulder': (46.774, 12.309, 5.502),
-        'right_elbow': (23.763, 14.799), 'right_wrist': (-2.241, -9.944),
+        'spine_lumbar': (1.356, -13.767, 11.167), 'spine_thoracic': (-12.111, -1.753, 11.555),
+        'neck': (26.612, 0.352, -7.145), 'head': (11.648, -1.191), 'right_clavicle': (7.357, 9.274),
+        'right_shoulder': (49.218, 4.696, 13.257), 'right_elbow': (31.0, 22.004),
+        'right_wrist': (-0.045, -24.157),
     })
     human.KeyJoints(42.1, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.745, 17.802, 4.153),
-        'right_elbow': (16.554, 13.664), 'right_wrist': (-1.905, -4.357),
+        'spine_lumbar': (7.271, -13.278, 10.386), 'spine_thoracic': (-9.762, -3.209, 9.981),
+        'neck': (24.358, 0.355, -5.868), 'head': (8.747, -1.196), 'right_clavicle': (3.589, 8.212),
+        'right_shoulder': (54.905, 3.688, 11.281), 'right_elbow': (33.341, 19.115),
+        'right_wrist': (-1.103, -20.148),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'right_clavicle': (-6.232, 14.959), 'right_shoulder': (49.027, 17.048, 5.792),
-        'right_elbow': (18.187, 15.112), 'right_wrist': (-1.639, -7.619),
+        'spine_lumbar': (7.218, -14.115, 9.922), 'spine_thoracic': (-9.33, -4.675, 9.493),
+        'neck': (24.104, 0.379, -5.554), 'head': (8.409, -1.197), 'right_clavicle': (3.412, 8.008),
+        'right_shoulder': (55.531, 3.195, 11.456), 'right_elbow': (33.421, 18.938),
+        'right_wrist': (-1.05, -20.02),
     })
     human.KeyJoints(42.3, {
-        'right_clavicle': (15.483, 14.671), 'right_shoulder': (50.739, 12.688, 17.989),
-        'right_elbow': (22.201, 27.521), 'right_wrist': (1.173, -23.247),
+        'spine_lumbar': (2.991, -19.44, 10.245), 'spine_thoracic': (-12.681, -9.243, 11.154),
+        'neck': (26.052, 0.077, -8.746), 'head': (11.049, -1.192),
+        'right_clavicle': (11.199, 9.058), 'right_shoulder': (52.341, 7.638, 15.68),
+        'right_elbow': (30.037, 24.646), 'right_wrist': (0.953, -24.717),
     })
     human.KeyJoints(42.4, {
-        'right_clavicle': (19.899, 13.96), 'right_shoulder': (51.467, 11.303, 21.302),
-        'right_elbow': (24.086, 30.997), 'right_wrist': (2.254, -26.381),
+        'spine_lumbar': (0.599, -20.0, 11.441), 'spine_thoracic': (-14.438, -10.0, 14.068),
+        'neck': (27.559, -0.163, -11.275), 'head': (12.541, -1.197),
+        'right_clavicle': (19.349, 11.365), 'right_shoulder': (51.465, 11.106, 21.945),
+        'right_elbow': (27.397, 31.606), 'right_wrist': (3.818, -28.253),
     })
     human.KeyJoints(42.5, {
-        'right_clavicle': (4.78, 7.51), 'right_shoulder': (46.176, 6.041, 10.602),
-        'right_elbow': (27.572, 19.155), 'right_wrist': (-1.162, -17.785),
+        'spine_lumbar': (-2.081, -17.999, 11.034), 'spine_thoracic': (-13.44, -6.385, 12.655),
+        'neck': (27.778, 0.267, -8.406), 'head': (12.813, -1.193),
+        'right_clavicle': (13.311, 10.462), 'right_shoulder': (48.863, 6.556, 17.837),
+        'right_elbow': (28.864, 26.884), 'right_wrist': (2.024, -27.454),
     })
     human.KeyJoints(42.6, {
-        'right_clavicle': (-9.818, 14.847), 'right_shoulder': (48.84, 17.464, 4.0),
-        'right_elbow': (18.424, 13.699), 'right_wrist': (-2.196, -5.342),
+        'spine_lumbar': (6.222, -12.4, 11.249), 'spine_thoracic': (-11.065, -1.079, 10.947),
+        'neck': (25.072, 0.289, -6.715), 'head': (9.832, -1.193), 'right_clavicle': (4.405, 8.634),
+        'right_shoulder': (52.49, 4.719, 11.207), 'right_elbow': (32.831, 19.657),
+        'right_wrist': (-1.065, -20.857),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
-        'right_clavicle': (-9.896, 15.0), 'right_shoulder': (49.89, 17.795, 4.296),
-        'right_elbow': (16.268, 13.651), 'right_wrist': (-1.811, -4.276),
+        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
+        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
+        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
+        'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(42.8, {
-        'right_clavicle': (6.689, 14.347), 'right_shoulder': (49.284, 13.902, 12.323),
-        'right_elbow': (20.792, 21.633), 'right_wrist': (-0.452, -17.28),
+        'spine_lumbar': (5.03, -17.142, 10.068), 'spine_thoracic': (-11.3, -6.995, 10.112),
+        'neck': (25.083, 0.202, -7.328), 'head': (9.901, -1.192), 'right_clavicle': (6.561, 8.258),
+        'right_shoulder': (53.368, 5.396, 12.617), 'right_elbow': (31.875, 20.973),
+        'right_wrist': (-0.408, -22.117),
     })
     human.KeyJoints(42.9, {
-        'right_clavicle': (19.152, 14.998), 'right_shoulder': (51.82, 12.652, 21.246),
-        'right_elbow': (22.931, 31.047), 'right_wrist': (2.266, -25.632),
+        'spine_lumbar': (1.082, -20.0, 11.017), 'spine_thoracic': (-14.015, -10.0, 13.259),
+        'neck': (27.189, -0.081, -10.492), 'head': (12.18, -1.195),
+        'right_clavicle': (17.518, 10.798), 'right_shoulder': (51.829, 10.262, 20.532),
+        'right_elbow': (27.906, 30.025), 'right_wrist': (3.173, -27.658),
     })
     human.KeyJoints(43.0, {
-        'right_clavicle': (15.736, 7.324), 'right_shoulder': (48.159, 4.356, 17.298),
-        'right_elbow': (28.31, 25.93), 'right_wrist': (0.791, -25.471),
+        'spine_lumbar': (-0.61, -20.0, 11.481), 'spine_thoracic': (-14.435, -9.865, 14.05),
+        'neck': (27.834, -0.073, -10.802), 'head': (12.828, -1.196),
+        'right_clavicle': (18.738, 11.411), 'right_shoulder': (50.582, 10.252, 21.684),
+        'right_elbow': (27.602, 31.219), 'right_wrist': (3.719, -28.247),
     })
     human.KeyJoints(43.1, {
-        'right_clavicle': (-7.14, 12.798), 'right_shoulder': (47.242, 14.193, 4.662),
-        'right_elbow': (22.319, 14.169), 'right_wrist': (-2.316, -8.234),
+        'spine_lumbar': (2.954, -12.881, 11.304), 'spine_thoracic': (-11.816, -0.976, 11.404),
+        'neck': (26.133, 0.331, -7.017), 'head': (11.159, -1.19), 'right_clavicle': (6.136, 9.051),
+        'right_shoulder': (49.907, 4.661, 12.33), 'right_elbow': (31.673, 21.025),
+        'right_wrist': (-0.482, -22.937),
     })
     human.KeyJoints(43.2, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.87, 17.808, 4.215),
-        'right_elbow': (16.303, 13.634), 'right_wrist': (-1.849, -4.225),
+        'spine_lumbar': (7.438, -13.551, 10.031), 'spine_thoracic': (-9.218, -3.979, 9.595),
+        'neck': (24.051, 0.398, -5.398), 'head': (8.331, -1.198), 'right_clavicle': (3.281, 8.063),
+        'right_shoulder': (55.647, 3.143, 11.386), 'right_elbow': (33.502, 18.928),
+        'right_wrist': (-1.089, -19.954),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'right_clavicle': (-3.579, 14.749), 'right_shoulder': (48.911, 16.315, 7.002),
-        'right_elbow': (18.767, 16.291), 'right_wrist': (-1.475, -9.581),
+        'spine_lumbar': (6.822, -14.618, 10.063), 'spine_thoracic': (-9.892, -4.944, 9.678),
+        'neck': (24.407, 0.325, -6.101), 'head': (8.828, -1.196), 'right_clavicle': (3.875, 8.062),
+        'right_shoulder': (54.838, 3.711, 11.454), 'right_elbow': (33.171, 19.152),
+        'right_wrist': (-0.999, -20.298),
     })
     human.KeyJoints(43.4, {
-        'right_clavicle': (17.295, 14.839), 'right_shoulder': (51.206, 12.586, 19.366),
-        'right_elbow': (22.448, 28.973), 'right_wrist': (1.634, -24.31),
+        'spine_lumbar': (2.397, -19.819, 10.399), 'spine_thoracic': (-13.083, -9.685, 11.663),
+        'neck': (26.382, 0.038, -9.204), 'head': (11.379, -1.193),
+        'right_clavicle': (12.949, 9.479), 'right_shoulder': (52.155, 8.394, 16.972),
+        'right_elbow': (29.414, 26.106), 'right_wrist': (1.534, -25.592),
     })
     human.KeyJoints(43.5, {
-        'right_clavicle': (19.958, 12.461), 'right_shoulder': (51.013, 9.56, 21.098),
-        'right_elbow': (25.212, 30.602), 'right_wrist': (2.166, -26.945),
+        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.427, 11.389), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
     })
     human.KeyJoints(43.6, {
-        'right_clavicle': (1.006, 8.651), 'right_shoulder': (46.218, 7.911, 8.566),
-        'right_elbow': (26.538, 17.331), 'right_wrist': (-1.64, -14.866),
+        'spine_lumbar': (-1.45, -16.556, 10.978), 'spine_thoracic': (-12.949, -4.666, 12.163),
+        'neck': (27.492, 0.334, -7.78), 'head': (12.534, -1.192),
+        'right_clavicle': (11.063, 10.002), 'right_shoulder': (48.653, 5.57, 16.112),
+        'right_elbow': (29.497, 25.03), 'right_wrist': (1.254, -26.643),
     })
     human.KeyJoints(43.7, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.267, 17.755, 4.036),
-        'right_elbow': (17.542, 13.706), 'right_wrist': (-2.066, -4.888),
+        'spine_lumbar': (6.687, -12.663, 11.031), 'spine_thoracic': (-10.734, -1.673, 10.694),
+        'neck': (24.818, 0.3, -6.5), 'head': (9.475, -1.194), 'right_clavicle': (4.176, 8.512),
+        'right_shoulder': (53.256, 4.512, 11.199), 'right_elbow': (32.991, 19.495),
+        'right_wrist': (-1.101, -20.612),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'right_clavicle': (-9.37, 15.0), 'right_shoulder': (49.683, 17.712, 4.497),
-        'right_elbow': (16.677, 13.849), 'right_wrist': (-1.79, -4.826),
+        'spine_lumbar': (7.522, -13.742, 9.788), 'spine_thoracic': (-8.85, -4.507, 9.331),
+        'neck': (23.84, 0.425, -5.083), 'head': (8.067, -1.198), 'right_clavicle': (3.076, 7.962),
+        'right_shoulder': (56.131, 2.768, 11.46), 'right_elbow': (33.608, 18.804),
+        'right_wrist': (-1.076, -19.83),
     })
     human.KeyJoints(43.9, {
-        'right_clavicle': (10.046, 14.387), 'right_shoulder': (49.693, 13.326, 14.325),
-        'right_elbow': (21.382, 23.697), 'right_wrist': (0.064, -19.678),
+        'spine_lumbar': (4.336, -18.055, 10.08), 'spine_thoracic': (-11.774, -7.837, 10.365),
+        'neck': (25.368, 0.157, -7.8), 'head': (10.316, -1.191), 'right_clavicle': (7.917, 8.434),
+        'right_shoulder': (52.956, 6.098, 13.439), 'right_elbow': (31.301, 22.006),
+        'right_wrist': (-0.042, -22.934),
     })
     human.KeyJoints(44.0, {
-        'right_clavicle': (19.184, 14.993), 'right_shoulder': (51.812, 12.643, 21.258),
-        'right_elbow': (22.955, 31.072), 'right_wrist': (2.266, -25.659),
+        'spine_lumbar': (0.834, -20.0, 11.209), 'spine_thoracic': (-14.221, -10.0, 13.652),
+        'neck': (27.37, -0.118, -10.857), 'head': (12.357, -1.196),
+        'right_clavicle': (18.455, 11.086), 'right_shoulder': (51.69, 10.678, 21.261),
+        'right_elbow': (27.638, 30.834), 'right_wrist': (3.508, -27.983),
     })
     human.KeyJoints(44.1, {
-        'right_clavicle': (12.547, 6.78), 'right_shoulder': (47.202, 4.319, 15.176),
-        'right_elbow': (28.403, 23.646), 'right_wrist': (0.112, -23.461),
+        'spine_lumbar': (-1.466, -19.856, 11.337), 'spine_thoracic': (-14.236, -9.224, 13.696),
+        'neck': (27.928, 0.037, -10.087), 'head': (12.936, -1.195),
+        'right_clavicle': (17.45, 11.229), 'right_shoulder': (49.945, 9.151, 20.857),
+        'right_elbow': (27.93, 30.227), 'right_wrist': (3.358, -28.106),
     })
     human.KeyJoints(44.2, {
-        'right_clavicle': (-8.576, 13.849), 'right_shoulder': (47.754, 15.792, 4.102),
-        'right_elbow': (20.914, 13.775), 'right_wrist': (-2.328, -6.931),
+        'spine_lumbar': (4.385, -12.384, 11.392), 'spine_thoracic': (-11.576, -0.601, 11.29),
+        'neck': (25.698, 0.306, -6.942), 'head': (10.689, -1.191), 'right_clavicle': (5.281, 8.891),
+        'right_shoulder': (50.754, 4.721, 11.697), 'right_elbow': (32.214, 20.344),
+        'right_wrist': (-0.789, -21.941),
     })
     human.KeyJoints(44.3, {
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.93, 17.81, 4.255),
-        'right_elbow': (16.188, 13.614), 'right_wrist': (-1.816, -4.168),
+        'spine_lumbar': (7.525, -13.729, 9.795), 'spine_thoracic': (-8.855, -4.486, 9.338),
+        'neck': (23.844, 0.425, -5.086), 'head': (8.071, -1.198), 'right_clavicle': (3.078, 7.965),
+        'right_shoulder': (56.124, 2.775, 11.458), 'right_elbow': (33.607, 18.806),
+        'right_wrist': (-1.077, -19.832),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'right_clavicle': (-3.903, 14.772), 'right_shoulder': (48.919, 16.403, 6.851),
-        'right_elbow': (18.697, 16.143), 'right_wrist': (-1.497, -9.337),
+        'spine_lumbar': (6.286, -15.349, 10.095), 'spine_thoracic': (-10.418, -5.442, 9.826),
+        'neck': (24.582, 0.289, -6.447), 'head': (9.159, -1.194), 'right_clavicle': (4.57, 8.111),
+        'right_shoulder': (54.244, 4.265, 11.543), 'right_elbow': (32.811, 19.55),
+        'right_wrist': (-0.888, -20.762),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
-        'neck': (28.617, 0.0, -10.397), 'right_clavicle': (15.594, 14.68),
-        'right_shoulder': (50.766, 12.681, 18.07), 'right_elbow': (22.216, 27.606),
-        'right_wrist': (1.2, -23.314),
+        'spine_lumbar': (1.846, -19.995, 10.605), 'spine_thoracic': (-13.464, -9.94, 12.246),
+        'neck': (26.704, -0.003, -9.676), 'head': (11.699, -1.194),
+        'right_clavicle': (14.747, 9.965), 'right_shoulder': (52.017, 9.139, 18.346),
+        'right_elbow': (28.798, 27.633), 'right_wrist': (2.16, -26.449),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (-0.89, -19.888, 11.376), 'spine_thoracic': (-14.283, -9.545, 13.799),
-        'neck': (28.523, 0.0, -10.309), 'head': (12.224, 0.0), 'right_clavicle': (19.919, 14.215),
-        'right_shoulder': (51.707, 11.566, 21.414), 'right_elbow': (24.044, 31.111),
-        'right_wrist': (2.255, -26.478),
+        'spine_lumbar': (0.508, -20.0, 11.497), 'spine_thoracic': (-14.479, -10.0, 14.141),
+        'neck': (27.607, -0.168, -11.338), 'head': (12.589, -1.197),
+        'right_clavicle': (19.415, 11.398), 'right_shoulder': (51.361, 11.123, 21.995),
+        'right_elbow': (27.38, 31.667), 'right_wrist': (3.841, -28.281),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (4.92, -15.818, 9.936), 'spine_thoracic': (-10.439, -6.098, 10.386),
-        'neck': (24.142, 0.0, -6.665), 'head': (10.347, 0.0), 'right_clavicle': (11.391, 2.821),
-        'right_shoulder': (50.711, -3.165, 13.775), 'right_elbow': (38.383, 21.274),
-        'right_wrist': (-1.123, -27.942),
+        'spine_lumbar': (-0.485, -15.161, 10.947), 'spine_thoracic': (-12.315, -2.985, 11.686),
+        'neck': (27.076, 0.38, -7.222), 'head': (12.12, -1.191), 'right_clavicle': (8.775, 9.528),
+        'right_shoulder': (48.962, 4.541, 14.276), 'right_elbow': (29.959, 23.063),
+        'right_wrist': (0.459, -26.225),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (6.998, -14.013, 9.64), 'spine_thoracic': (-8.586, -4.521, 9.201),
-        'neck': (22.375, 0.0, -4.807), 'head': (9.589, 0.0), 'right_clavicle': (2.73, 7.941),
-        'right_shoulder': (55.848, 2.166, 10.943), 'right_elbow': (34.071, 18.507),
-        'right_wrist': (-1.361, -21.581),
+        'spine_lumbar': (6.47, -13.211, 10.572), 'spine_thoracic': (-10.041, -2.394, 10.214),
+        'neck': (24.59, 0.357, -5.978), 'head': (9.125, -1.195), 'right_clavicle': (3.641, 8.294),
+        'right_shoulder': (54.278, 3.558, 10.897), 'right_elbow': (32.669, 18.96),
+        'right_wrist': (-1.193, -21.627),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)
     human.KeyJoints(44.9, {
-        'neck': (22.383, 0.0, -4.672), 'head': (9.593, 0.0),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.285826)
-    human.KeyJoints(45.0, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'neck': (21.149, 0.0, -9.968), 'head': (9.064, 0.0),
-    })
-    human.KeyJoints(45.1, {'neck': (18.141, 0.0, -22.869), 'head': (7.775, 0.0)})
+    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
+    human.KeyJoints(45.0, {'neck': (23.271, -0.26, -10.041), 'head': (7.587, -1.211)})
+    human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
-        'neck': (16.382, 0.0, -30.414), 'head': (7.021, 0.0), 'right_clavicle': (2.794, 7.882),
+        'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
         'right_shoulder': (56.302, 2.111, 11.17), 'right_elbow': (33.176, 18.453),
         'right_wrist': (-1.155, -21.049),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=45.202436, duration=0.848604)
+    human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
     human.KeyJoints(45.3, {
-        'right_shoulder': (56.449, 5.333, 9.913), 'right_elbow': (39.15, 18.907),
-        'right_wrist': (-1.9, -20.327),
+        'neck': (20.398, -3.354, -31.314), 'right_shoulder': (56.449, 5.333, 9.913),
+        'right_elbow': (39.15, 18.907), 'right_wrist': (-1.9, -20.327),
     })
     human.KeyJoints(45.4, {
-        'right_shoulder': (57.916, 14.725, 6.061), 'right_elbow': (51.891, 19.995),
-        'right_wrist': (-3.726, -18.665),
+        'head': (5.285, -1.307), 'right_shoulder': (57.916, 14.725, 6.061),
+        'right_elbow': (51.891, 19.995), 'right_wrist': (-3.726, -18.665),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TO on r_arm at panel_latch
     human.KeyJoints(45.5, {
@@ -2241,15 +2789,15 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
     human.KeyJoints(46.0, {
-        'neck': (16.381, 0.0, -30.42), 'head': (7.021, 0.0),
+        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
         'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
-    human.KeyJoints(46.1, {'neck': (16.611, 0.0, -30.574), 'head': (7.119, 0.0)})
-    human.KeyJoints(46.2, {'neck': (17.893, 0.0, -31.43), 'head': (7.668, 0.0)})
+    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
+    human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
     human.KeyJoints(46.3, {
-        'neck': (18.882, 0.0, -32.092), 'head': (8.092, 0.0),
+        'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
         'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
@@ -2259,6 +2807,7 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=46.313839, duration=0.867635)
     human.KeyJoints(46.4, {
+        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514),
         'right_shoulder': (73.767, 23.618, 1.961), 'right_elbow': (33.865, 19.603),
         'right_wrist': (-1.966, -18.068), 'left_shoulder': (9.317, 5.386, 11.496),
         'left_elbow': (34.224, 17.198), 'left_wrist': (0.015, -0.061),
@@ -2294,7 +2843,7 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(47.0, {
         'spine_lumbar': (12.204, -12.439, 8.453), 'spine_thoracic': (-11.745, -5.464, 7.89),
-        'neck': (18.903, 0.0, -32.105), 'head': (8.101, 0.0), 'right_clavicle': (5.033, 8.82),
+        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (5.033, 8.82),
         'right_shoulder': (31.529, 35.932, -8.762), 'right_elbow': (89.81, 22.759),
         'right_wrist': (-12.314, -14.725), 'left_clavicle': (-1.286, 2.174),
         'left_shoulder': (85.084, -30.236, 15.109), 'left_elbow': (20.449, 18.128),
@@ -2304,11 +2853,10 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(47.1, {
         'spine_lumbar': (16.336, -11.647, 7.631), 'spine_thoracic': (-14.345, -6.325, 6.982),
-        'neck': (17.891, 0.0, -31.004), 'right_clavicle': (6.785, 9.678),
-        'right_shoulder': (32.723, 37.229, -9.557), 'right_elbow': (90.674, 22.828),
-        'right_wrist': (-12.513, -14.599), 'left_clavicle': (-2.339, 3.868),
-        'left_shoulder': (89.156, -29.383, 14.762), 'left_elbow': (20.636, 18.172),
-        'left_wrist': (0.955, -5.547),
+        'right_clavicle': (6.785, 9.678), 'right_shoulder': (32.723, 37.229, -9.557),
+        'right_elbow': (90.674, 22.828), 'right_wrist': (-12.513, -14.599),
+        'left_clavicle': (-2.339, 3.868), 'left_shoulder': (89.156, -29.383, 14.762),
+        'left_elbow': (20.636, 18.172), 'left_wrist': (0.955, -5.547),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
@@ -2317,36 +2865,39 @@ def remove_access_panel_cad():
     human.KeyRoot(47.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.2, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
-        'neck': (17.048, 0.0, -29.983), 'head': (7.306, 0.0), 'right_clavicle': (7.019, 9.794),
-        'right_shoulder': (32.91, 37.386, -9.647), 'left_clavicle': (-2.48, 4.095),
-        'left_shoulder': (89.922, -29.245, 14.7), 'left_elbow': (20.254, 18.178),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'neck': (20.216, -3.001, -31.124), 'head': (6.194, -1.656),
+        'right_clavicle': (7.019, 9.794), 'right_shoulder': (32.91, 37.386, -9.647),
+        'left_clavicle': (-2.48, 4.095), 'left_shoulder': (89.922, -29.245, 14.7),
+        'left_elbow': (20.254, 18.178), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
     human.Walk((131.346, 0.0, 22.472), start=47.253474, duration=5.147368)
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
     human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'neck': (15.856, 0.0, -27.886), 'head': (6.833, 0.0), 'right_elbow': (90.762, 22.836),
+        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551), 'right_elbow': (90.762, 22.836),
         'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
         'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
     human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'neck': (8.74, 0.0, -15.371), 'head': (3.779, 0.0), 'right_hip': (7.171, -0.397, -1.747),
-        'right_knee': (14.32,), 'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77),
-        'left_knee': (17.258,), 'left_ankle': (7.387, 0.62),
+        'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872),
+        'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
+        'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
+        'left_ankle': (7.387, 0.62),
     })
     human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'neck': (1.363, 0.0, -2.397), 'head': (0.613, 0.0), 'right_hip': (6.913, -0.846, -4.294),
-        'right_knee': (14.599,), 'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191),
-        'left_knee': (28.366,), 'left_ankle': (13.045, 1.381),
+        'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
+        'right_hip': (6.913, -0.846, -4.294), 'right_knee': (14.599,),
+        'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
+        'left_ankle': (13.045, 1.381),
     })
     human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'neck': (-0.056, 0.0, 0.098), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
+        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
         'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
         'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,), 'left_ankle': (18.33, 1.841),
     })
@@ -2624,11 +3175,11 @@ def remove_access_panel_cad():
         'left_knee': (5.09,), 'left_ankle': (1.987, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.3125)
+    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
     human.KeyRoot(52.5, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {'neck': (8.335, 8.038, -4.151), 'head': (3.572, 2.679)})
+    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
     human.KeyJoints(52.6, {
-        'neck': (24.527, 23.651, -12.216), 'head': (10.512, 7.884),
+        'neck': (23.728, 22.881, -14.015), 'head': (10.169, -7.627),
         'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
         'left_elbow': (20.254, 18.178), 'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,),
         'right_ankle': (1.909, 0.0), 'left_hip': (3.031, 0.0, 0.0), 'left_knee': (4.935,),
@@ -2637,48 +3188,47 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
-        'neck': (34.814, 33.571, -17.339), 'head': (14.92, 11.19),
-        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.775, 22.837),
-        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.719, -29.213, 14.723),
-        'left_elbow': (20.479, 18.166), 'left_wrist': (0.904, -5.537),
+        'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
+        'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
+        'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
+        'left_elbow': (20.451, 18.166), 'left_wrist': (0.905, -5.539),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.713343, duration=0.648558)
+    human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
-        'neck': (35.0, 33.75, -17.431), 'right_shoulder': (29.748, 35.989, -9.049),
-        'right_elbow': (91.373, 22.868), 'right_wrist': (-12.54, -14.334),
-        'left_shoulder': (83.084, -28.036, 15.61), 'left_elbow': (27.221, 17.668),
-        'left_wrist': (0.209, -4.18),
+        'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
+        'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
+        'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
+        'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
     })
     human.KeyJoints(52.9, {
-        'head': (15.0, 11.25), 'right_shoulder': (19.97, 31.61, -7.109),
-        'right_elbow': (93.772, 22.959), 'right_wrist': (-12.654, -13.509),
-        'left_shoulder': (65.642, -24.748, 18.136), 'left_elbow': (43.254, 16.182),
-        'left_wrist': (-1.722, -0.547),
+        'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
+        'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
+        'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (5.321, 24.375, -3.194), 'right_elbow': (97.715, 23.079),
-        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.503, -19.649, 21.337),
-        'left_elbow': (62.42, 14.158), 'left_wrist': (-4.471, 3.877),
+        'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
+        'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
+        'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.226, 15.952, 2.926), 'right_elbow': (99.624, 23.159),
-        'right_wrist': (-12.531, -11.14), 'left_shoulder': (20.919, -12.952, 23.562),
-        'left_elbow': (78.036, 12.531), 'left_wrist': (-7.449, 7.525),
+        'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
+        'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
+        'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-15.566, 9.215, 10.058), 'right_elbow': (100.11, 23.131),
-        'right_wrist': (-11.52, -10.444), 'left_shoulder': (7.028, -5.041, 23.588),
-        'left_elbow': (88.729, 11.493), 'left_wrist': (-10.751, 10.539),
+        'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
+        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
+        'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.155),
-        'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
-        'left_elbow': (95.414, 11.693), 'left_wrist': (-11.973, 12.631),
+        'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
+        'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
+        'left_elbow': (95.405, 11.706), 'left_wrist': (-11.963, 12.632),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
@@ -2691,7 +3241,7 @@ def remove_access_panel_cad():
     human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(53.433901, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
-        'neck': (35.0, 33.75, -17.431), 'head': (15.0, 11.25), 'right_clavicle': (7.019, 9.794),
+        'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'right_wrist': (-11.305, -9.547), 'left_clavicle': (-2.48, 4.095),
         'left_shoulder': (0.506, -1.597, 22.751), 'left_elbow': (95.961, 11.791),

@@ -92,28 +92,28 @@ def remove_avionics_unit():
         'left_ankle': (7.131, 0.421),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
-    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.292632)
+    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
-    human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.292632)
+    human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     human.KeyRoot(1.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (-0.026, 0.0, 0.0), 'head': (-0.009, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.016, 0.0, 0.0),
         'left_knee': (4.902,), 'left_ankle': (1.889, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (-8.023, 0.0, 0.0), 'head': (-2.674, 0.0)})
+    human.KeyJoints(1.4, {'neck': (-6.498, 0.0, 0.0), 'head': (-5.508, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (-21.523, 0.0, 0.0), 'head': (-7.174, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0), 'right_hip': (3.019, 0.0, 0.0),
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
-    human.LookAt((0.0, 178.0, 100.0), start=1.587369, duration=1.806515)
+    human.LookAt((0.0, 178.0, 100.0), start=1.560423, duration=1.833461)
     human.KeyJoints(1.6, {
         'spine_lumbar': (0.001, -0.001, -0.004), 'spine_thoracic': (0.004, 0.0, -0.008),
-        'neck': (-27.864, 0.0, 0.042), 'head': (-9.288, 0.0), 'right_clavicle': (0.008, -0.004),
+        'neck': (-20.079, -0.039, 0.129), 'head': (-17.277, 0.0), 'right_clavicle': (0.008, -0.004),
         'right_shoulder': (8.593, 5.778, 11.444), 'right_elbow': (34.371, 17.186),
         'left_clavicle': (0.008, 0.003), 'left_shoulder': (8.631, 5.732, 11.457),
         'left_elbow': (34.377, 17.163), 'left_wrist': (-0.002, -0.001),
@@ -122,81 +122,85 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.7, {
         'spine_lumbar': (0.049, -0.039, -0.141), 'spine_thoracic': (0.128, 0.011, -0.283),
-        'neck': (-28.517, 0.0, 1.239), 'head': (-9.506, 0.0), 'right_clavicle': (0.262, -0.141),
+        'neck': (-20.535, -0.387, 1.251), 'head': (-17.771, 0.0), 'right_clavicle': (0.262, -0.141),
         'right_shoulder': (8.558, 7.345, 10.957), 'right_elbow': (34.165, 17.108),
         'left_clavicle': (0.282, 0.106), 'left_shoulder': (9.844, 5.803, 11.378),
         'left_elbow': (34.354, 16.318), 'left_wrist': (-0.066, -0.02),
     })
     human.KeyJoints(1.8, {
         'spine_lumbar': (0.215, -0.171, -0.617), 'spine_thoracic': (0.56, 0.046, -1.234),
-        'neck': (-29.831, 0.0, 3.267), 'head': (-9.944, 0.0), 'right_clavicle': (1.143, -0.617),
-        'right_shoulder': (8.434, 12.775, 9.268), 'right_elbow': (33.45, 16.835),
-        'right_wrist': (0.017, -0.042), 'left_clavicle': (1.231, 0.464),
-        'left_shoulder': (14.048, 6.05, 11.106), 'left_elbow': (34.276, 13.391),
-        'left_wrist': (-0.29, -0.086),
+        'neck': (-21.337, -0.911, 2.954), 'head': (-18.659, -0.003),
+        'right_clavicle': (1.143, -0.617), 'right_shoulder': (8.434, 12.775, 9.268),
+        'right_elbow': (33.45, 16.835), 'right_wrist': (0.017, -0.042),
+        'left_clavicle': (1.231, 0.464), 'left_shoulder': (14.048, 6.05, 11.106),
+        'left_elbow': (34.276, 13.391), 'left_wrist': (-0.29, -0.086),
     })
     human.KeyJoints(1.9, {
         'spine_lumbar': (0.536, -0.423, -1.524), 'spine_thoracic': (1.383, 0.114, -3.049),
-        'neck': (-31.737, 0.0, 5.799), 'head': (-10.579, 0.0), 'right_clavicle': (2.824, -1.524),
-        'right_shoulder': (8.199, 23.139, 6.044), 'right_elbow': (32.082, 16.314),
-        'left_clavicle': (3.043, 1.149), 'left_shoulder': (22.076, 6.52, 10.585),
-        'left_elbow': (34.122, 7.805), 'left_wrist': (-0.716, -0.213),
+        'neck': (-22.882, -1.611, 5.231), 'head': (-19.699, -0.009),
+        'right_clavicle': (2.824, -1.524), 'right_shoulder': (8.199, 23.139, 6.044),
+        'right_elbow': (32.082, 16.314), 'left_clavicle': (3.043, 1.149),
+        'left_shoulder': (22.076, 6.52, 10.585), 'left_elbow': (34.122, 7.805),
+        'left_wrist': (-0.716, -0.213),
     })
     human.KeyJoints(2.0, {
         'spine_lumbar': (1.035, -0.789, -2.856), 'spine_thoracic': (2.583, 0.212, -5.712),
-        'neck': (-34.175, 0.0, 8.414), 'head': (-11.392, 0.0), 'right_clavicle': (5.3, -2.856),
-        'right_shoulder': (7.854, 38.345, 1.313), 'right_elbow': (30.055, 15.551),
-        'left_clavicle': (5.701, 2.158), 'left_shoulder': (33.897, 7.212, 9.821),
-        'left_elbow': (33.879, -0.393), 'left_wrist': (-1.342, -0.399),
+        'neck': (-26.392, -2.325, 7.512), 'head': (-19.521, -0.023),
+        'right_clavicle': (5.3, -2.856), 'right_shoulder': (7.854, 38.345, 1.313),
+        'right_elbow': (30.055, 15.551), 'left_clavicle': (5.701, 2.158),
+        'left_shoulder': (33.897, 7.212, 9.821), 'left_elbow': (33.879, -0.393),
+        'left_wrist': (-1.342, -0.399),
     })
     human.KeyJoints(2.1, {
         'spine_lumbar': (1.764, -1.241, -4.533), 'spine_thoracic': (4.057, 0.331, -9.066),
-        'neck': (-37.054, 0.0, 10.698), 'head': (-12.351, 0.0), 'right_clavicle': (8.438, -4.533),
-        'right_shoulder': (7.424, 57.475, -4.642), 'right_elbow': (27.439, 14.589),
-        'right_wrist': (0.129, -0.318), 'left_clavicle': (9.049, 3.449),
-        'left_shoulder': (48.914, 8.077, 8.857), 'left_elbow': (33.495, -10.714),
-        'left_wrist': (-2.132, -0.633),
+        'neck': (-30.605, -2.999, 9.662), 'head': (-19.459, -0.058),
+        'right_clavicle': (8.438, -4.533), 'right_shoulder': (7.424, 57.475, -4.642),
+        'right_elbow': (27.439, 14.589), 'right_wrist': (0.129, -0.318),
+        'left_clavicle': (9.049, 3.449), 'left_shoulder': (48.914, 8.077, 8.857),
+        'left_elbow': (33.495, -10.714), 'left_wrist': (-2.132, -0.633),
     })
     human.KeyJoints(2.2, {
         'spine_lumbar': (2.902, -1.71, -6.437), 'spine_thoracic': (5.579, 0.45, -12.873),
-        'neck': (-40.232, 0.0, 12.299), 'right_clavicle': (12.054, -6.437),
+        'neck': (-35.143, -3.438, 10.983), 'right_clavicle': (12.054, -6.437),
         'right_shoulder': (6.951, 79.142, -11.404), 'right_elbow': (24.29, 13.497),
         'left_clavicle': (12.851, 4.971), 'left_shoulder': (66.365, 9.023, 7.763),
         'left_elbow': (32.781, -22.434),
     })
     human.KeyJoints(2.3, {
         'spine_lumbar': (4.892, -2.063, -8.433), 'spine_thoracic': (6.691, 0.519, -16.866),
-        'neck': (-43.517, 0.0, 12.966), 'right_shoulder': (6.507, 101.689, -18.49),
+        'neck': (-39.782, -3.629, 11.428), 'right_shoulder': (6.507, 101.689, -18.49),
         'right_elbow': (20.572, 12.351), 'left_clavicle': (16.842, 6.705),
         'left_shoulder': (85.661, 9.864, 6.627), 'left_elbow': (31.212, -34.726),
     })
     human.KeyJoints(2.4, {
         'spine_lumbar': (8.391, -2.102, -10.372), 'spine_thoracic': (6.711, 0.466, -20.744),
-        'neck': (-46.678, 0.0, 12.651), 'head': (-15.559, 0.0), 'right_clavicle': (19.864, -10.372),
-        'right_shoulder': (6.186, 123.201, -25.362), 'right_elbow': (16.192, 11.239),
-        'right_wrist': (0.359, -0.878), 'left_clavicle': (20.721, 8.655),
-        'left_shoulder': (106.316, 10.32, 5.563), 'left_elbow': (27.951, -46.667),
-        'left_wrist': (-4.823, -1.458),
+        'neck': (-44.207, -3.563, 11.019), 'head': (-18.876, -0.253),
+        'right_clavicle': (19.864, -10.372), 'right_shoulder': (6.186, 123.201, -25.362),
+        'right_elbow': (16.192, 11.239), 'right_wrist': (0.359, -0.878),
+        'left_clavicle': (20.721, 8.655), 'left_shoulder': (106.316, 10.32, 5.563),
+        'left_elbow': (27.951, -46.667), 'left_wrist': (-4.823, -1.458),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (13.584, -1.71, -12.098), 'spine_thoracic': (5.246, 0.247, -24.196),
-        'neck': (-49.499, 0.0, 11.404), 'head': (-16.5, 0.0), 'right_clavicle': (23.52, -12.098),
-        'right_shoulder': (6.056, 141.814, -31.466), 'right_elbow': (11.31, 10.248),
-        'left_clavicle': (24.178, 10.734), 'left_shoulder': (127.218, 10.201, 4.679),
-        'left_elbow': (22.654, -57.298), 'left_wrist': (-5.54, -1.709),
+        'neck': (-47.39, -3.083, 9.936), 'head': (-19.254, -0.132),
+        'right_clavicle': (23.52, -12.098), 'right_shoulder': (6.056, 141.814, -31.466),
+        'right_elbow': (11.31, 10.248), 'left_clavicle': (24.178, 10.734),
+        'left_shoulder': (127.218, 10.201, 4.679), 'left_elbow': (22.654, -57.298),
+        'left_wrist': (-5.54, -1.709),
     })
     human.KeyJoints(2.6, {
         'spine_lumbar': (19.357, -1.053, -13.473), 'spine_thoracic': (2.88, -0.065, -26.945),
-        'neck': (-51.822, 0.0, 9.457), 'head': (-17.274, 0.0), 'right_clavicle': (26.55, -13.473),
-        'right_shoulder': (6.078, 156.208, -36.317), 'right_elbow': (6.66, 9.46),
-        'left_clavicle': (26.935, 12.661), 'left_shoulder': (145.842, 9.675, 4.028),
-        'left_elbow': (16.511, -65.77), 'left_wrist': (-6.065, -1.914),
+        'neck': (-49.573, -2.317, 8.272), 'head': (-19.909, 0.001),
+        'right_clavicle': (26.55, -13.473), 'right_shoulder': (6.078, 156.208, -36.317),
+        'right_elbow': (6.66, 9.46), 'left_clavicle': (26.935, 12.661),
+        'left_shoulder': (145.842, 9.675, 4.028), 'left_elbow': (16.511, -65.77),
+        'left_wrist': (-6.065, -1.914),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
         'spine_lumbar': (23.881, -0.474, -14.395), 'spine_thoracic': (0.812, -0.33, -28.791),
-        'neck': (-53.79, 0.0, 6.65), 'right_clavicle': (28.629, -14.395),
+        'neck': (-52.071, -1.402, 5.935), 'right_clavicle': (28.629, -14.395),
         'right_shoulder': (6.143, 165.697, -39.569), 'right_elbow': (3.239, 8.931),
         'right_wrist': (0.576, -1.488), 'left_clavicle': (28.787, 14.06),
         'left_shoulder': (159.124, 9.147, 3.613), 'left_elbow': (11.619, -71.458),
@@ -204,22 +208,23 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (26.291, -0.156, -14.865), 'spine_thoracic': (-0.32, -0.474, -29.731),
-        'neck': (-55.545, 0.0, 3.804), 'right_clavicle': (29.694, -14.865),
+        'neck': (-54.368, -0.66, 3.447), 'right_clavicle': (29.694, -14.865),
         'right_shoulder': (6.185, 170.501, -41.224), 'right_elbow': (1.449, 8.661),
         'left_clavicle': (29.73, 14.79), 'left_shoulder': (166.015, 8.849, 3.405),
         'left_elbow': (9.002, -74.355), 'left_wrist': (-6.565, -2.123),
     })
     human.KeyJoints(2.9, {
         'spine_lumbar': (26.967, -0.066, -14.996), 'spine_thoracic': (-0.64, -0.514, -29.993),
-        'neck': (-57.373, 0.0, 1.078), 'head': (-19.124, 0.0), 'right_clavicle': (29.992, -14.996),
-        'right_shoulder': (6.197, 171.84, -41.686), 'right_elbow': (0.947, 8.586),
-        'right_wrist': (0.611, -1.593), 'left_clavicle': (29.993, 14.994),
-        'left_shoulder': (167.943, 8.765, 3.347), 'left_elbow': (8.267, -75.163),
+        'neck': (-56.851, -0.095, 1.024), 'head': (-19.525, 0.003),
+        'right_clavicle': (29.992, -14.996), 'right_shoulder': (6.197, 171.84, -41.686),
+        'right_elbow': (0.947, 8.586), 'right_wrist': (0.611, -1.593),
+        'left_clavicle': (29.993, 14.994), 'left_shoulder': (167.943, 8.765, 3.347),
+        'left_elbow': (8.267, -75.163),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(3.0, {
-        'neck': (-58.164, 0.0, -0.004), 'head': (-19.388, 0.0), 'right_elbow': (0.916, 8.584),
+        'neck': (-57.993, 0.092, 0.051), 'right_elbow': (0.916, 8.584),
         'right_wrist': (0.603, -1.578), 'left_shoulder': (168.079, 8.75, 3.346),
         'left_elbow': (8.1, -75.184), 'left_wrist': (-6.565, -2.126),
     })
@@ -230,13 +235,13 @@ def remove_avionics_unit():
         'left_wrist': (-5.97, -1.915),
     })
     human.KeyJoints(3.2, {
-        'neck': (-58.329, 0.0, -0.108), 'right_elbow': (0.42, 8.585),
+        'neck': (-58.22, 0.109, -0.044), 'head': (-19.584, 0.003), 'right_elbow': (0.42, 8.585),
         'right_wrist': (0.349, -1.033), 'left_shoulder': (170.532, 8.404, 3.352),
         'left_elbow': (3.853, -75.179), 'left_wrist': (-4.647, -1.462),
     })
     human.KeyJoints(3.3, {
         'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.547, -30.0),
-        'neck': (-58.574, 0.0, -0.138), 'right_shoulder': (6.523, 171.769, -41.698),
+        'neck': (-58.558, 0.114, -0.07), 'right_shoulder': (6.523, 171.769, -41.698),
         'right_elbow': (0.293, 8.586), 'right_wrist': (0.269, -0.856),
         'left_shoulder': (171.161, 8.326, 3.353), 'left_elbow': (2.793, -75.178),
         'left_wrist': (-3.954, -1.229),
@@ -246,62 +251,61 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
-    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.37074)
-    human.KeyJoints(3.4, {'neck': (-58.617, 0.0, -0.137), 'head': (-19.539, 0.0)})
-    human.KeyJoints(3.5, {'neck': (-58.341, 0.0, 0.014)})
-    human.KeyJoints(3.6, {'head': (-19.268, 0.0)})
+    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.447533)
+    human.KeyJoints(3.4, {'neck': (-58.616, 0.114, -0.07)})
+    human.KeyJoints(3.5, {'neck': (-58.342, 0.1, 0.019)})
+    human.KeyJoints(3.6, {'head': (-19.471, 0.001)})
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     human.KeyJoints(3.7, {
-        'spine_thoracic': (-0.555, -0.55, -30.0), 'neck': (-57.338, 0.0, 0.563),
-        'head': (-19.113, 0.0), 'right_shoulder': (6.522, 171.751, -41.698),
-        'left_shoulder': (171.113, 8.39, 3.327), 'left_elbow': (2.787, -75.174),
-        'left_wrist': (-3.942, -1.226),
+        'spine_thoracic': (-0.555, -0.55, -30.0), 'neck': (-57.139, 0.007, 0.412),
+        'right_shoulder': (6.522, 171.751, -41.698), 'left_shoulder': (171.113, 8.39, 3.327),
+        'left_elbow': (2.787, -75.174), 'left_wrist': (-3.942, -1.226),
     })
-    # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
-    human.LookAt((0.0, 165.0, 75.0), start=3.764623, duration=3.122804)
     human.KeyJoints(3.8, {
         'spine_lumbar': (27.289, 0.129, -14.987), 'spine_thoracic': (-0.308, -0.659, -30.0),
-        'neck': (-57.241, -0.096, 0.347), 'head': (-19.08, 0.063),
+        'neck': (-56.727, -0.065, 0.546), 'head': (-19.351, 0.0),
         'right_shoulder': (6.448, 171.216, -41.684), 'right_wrist': (0.322, -0.887),
         'left_clavicle': (30.0, 14.97), 'left_shoulder': (169.455, 10.371, 2.513),
         'left_elbow': (2.915, -75.064), 'left_wrist': (-3.798, -1.206),
     })
+    # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
+    human.LookAt((0.0, 165.0, 75.0), start=3.841417, duration=3.04601)
     human.KeyJoints(3.9, {
         'spine_lumbar': (27.427, 0.082, -14.944), 'spine_thoracic': (0.52, -1.026, -30.0),
-        'neck': (-57.427, -1.284, -3.091), 'head': (-19.136, 0.849),
+        'neck': (-56.722, -0.362, -0.083), 'head': (-19.354, 0.147),
         'right_clavicle': (30.0, -14.941), 'right_shoulder': (6.201, 169.422, -41.638),
         'right_wrist': (0.495, -0.993), 'left_shoulder': (163.896, 17.016, -0.216),
         'left_elbow': (3.344, -74.693), 'left_wrist': (-3.312, -1.136),
     })
     human.KeyJoints(4.0, {
         'spine_lumbar': (27.685, -0.004, -14.863), 'spine_thoracic': (2.065, -1.711, -30.0),
-        'neck': (-57.778, -3.518, -9.557), 'head': (-19.241, 2.327),
+        'neck': (-56.956, -1.673, -3.777), 'head': (-19.404, 0.994),
         'right_shoulder': (5.741, 166.073, -41.55), 'right_wrist': (0.818, -1.192),
         'left_clavicle': (29.999, 14.69), 'left_shoulder': (153.517, 29.419, -5.31),
         'left_elbow': (4.146, -74.002), 'left_wrist': (-2.405, -1.006),
     })
     human.KeyJoints(4.1, {
         'spine_lumbar': (28.064, -0.132, -14.745), 'spine_thoracic': (4.337, -2.717, -30.0),
-        'neck': (-58.232, -6.407, -17.916), 'head': (-19.377, 4.238),
+        'neck': (-57.349, -3.809, -9.962), 'head': (-19.486, 2.411),
         'right_shoulder': (5.063, 161.148, -41.423), 'right_elbow': (0.225, 8.567),
         'right_wrist': (1.294, -1.483), 'left_shoulder': (138.257, 47.657, -12.8),
         'left_elbow': (5.324, -72.985), 'left_wrist': (-1.072, -0.815),
     })
     human.KeyJoints(4.2, {
         'spine_lumbar': (28.564, -0.301, -14.59), 'spine_thoracic': (7.336, -4.046, -30.0),
-        'neck': (-58.727, -9.558, -27.032), 'right_clavicle': (30.0, -14.57),
-        'right_shoulder': (4.169, 154.648, -41.254), 'right_wrist': (1.922, -1.868),
-        'left_clavicle': (29.998, 14.068), 'left_shoulder': (118.114, 71.73, -22.687),
-        'left_elbow': (6.878, -71.643), 'left_wrist': (0.687, -0.563),
+        'neck': (-57.842, -6.465, -17.729), 'head': (-19.589, 4.19),
+        'right_clavicle': (30.0, -14.57), 'right_shoulder': (4.169, 154.648, -41.254),
+        'right_wrist': (1.922, -1.868), 'left_clavicle': (29.998, 14.068),
+        'left_shoulder': (118.114, 71.73, -22.687), 'left_elbow': (6.878, -71.643),
+        'left_wrist': (0.687, -0.563),
     })
     human.KeyJoints(4.3, {
-        'neck': (-59.201, -12.578, -35.77), 'head': (-19.668, 8.32),
-        'left_shoulder': (93.232, 101.468, -34.9),
+        'neck': (-58.378, -9.337, -26.171), 'left_shoulder': (93.232, 101.468, -34.9),
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (29.805, -0.718, -14.203), 'spine_thoracic': (14.772, -7.341, -30.0),
-        'neck': (-59.594, -15.074, -42.994), 'head': (-19.786, 9.971),
+        'neck': (-58.9, -12.122, -34.38), 'head': (-19.811, 8.005),
         'right_shoulder': (1.952, 138.532, -40.835), 'right_wrist': (3.479, -2.821),
         'left_clavicle': (29.996, 13.191), 'left_shoulder': (68.174, 131.415, -47.199),
         'left_elbow': (10.734, -68.316), 'left_wrist': (5.05, 0.062),
@@ -310,7 +314,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.5, {
         'spine_lumbar': (30.277, -0.877, -14.056), 'spine_thoracic': (17.605, -8.596, -30.0),
-        'neck': (-59.842, -16.655, -47.568), 'head': (-19.86, 11.017),
+        'neck': (-59.349, -14.514, -41.448), 'head': (-19.905, 9.625),
         'right_clavicle': (30.0, -14.01), 'right_shoulder': (1.107, 132.39, -40.675),
         'right_wrist': (4.072, -3.185), 'left_clavicle': (29.995, 12.856),
         'left_shoulder': (49.143, 154.16, -56.541), 'left_elbow': (12.203, -67.048),
@@ -318,13 +322,14 @@ def remove_avionics_unit():
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (30.588, -0.982, -13.959), 'spine_thoracic': (19.469, -9.422, -30.0),
-        'neck': (-59.897, -17.007, -48.586), 'head': (-19.877, 11.249),
+        'neck': (-59.667, -16.211, -46.468), 'head': (-19.972, 10.775),
         'right_shoulder': (0.552, 128.35, -40.57), 'right_wrist': (4.462, -3.424),
         'left_clavicle': (29.994, 12.636), 'left_shoulder': (36.626, 169.119, -62.685),
         'left_elbow': (13.169, -66.214), 'left_wrist': (7.805, 0.457),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (30.753, -1.038, -13.908), 'spine_thoracic': (20.46, -9.861, -30.0),
+        'neck': (-59.799, -16.908, -48.532), 'head': (-20.0, 11.248),
         'right_shoulder': (0.256, 126.201, -40.514), 'right_elbow': (0.004, 8.505),
         'right_wrist': (4.67, -3.551), 'left_shoulder': (29.965, 177.08, -65.954),
         'left_elbow': (13.683, -65.77), 'left_wrist': (8.387, 0.54),
@@ -341,7 +346,7 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=4.845791, duration=0.072)
     human.KeyJoints(4.9, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.897, -17.007, -48.586), 'right_clavicle': (30.0, -13.838),
+        'neck': (-59.799, -16.911, -48.542), 'right_clavicle': (30.0, -13.838),
         'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
         'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
     })
@@ -349,14 +354,13 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(5.0, {
         'spine_lumbar': (30.987, -1.437, -13.853), 'spine_thoracic': (19.565, -9.331, -29.077),
-        'neck': (-59.914, -16.858, -47.009), 'right_clavicle': (28.744, -13.881),
+        'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.744, -13.881),
         'right_shoulder': (0.447, 127.277, -40.508), 'right_elbow': (0.367, 8.515),
         'right_wrist': (5.047, -3.91), 'left_clavicle': (29.994, 12.52),
         'left_shoulder': (27.682, 179.393, -66.938), 'left_wrist': (8.598, 0.548),
     })
     human.KeyJoints(5.1, {
         'spine_lumbar': (32.122, -3.871, -13.588), 'spine_thoracic': (11.806, -5.044, -23.085),
-        'neck': (-59.958, -16.399, -42.261), 'head': (-19.949, 11.248),
         'right_clavicle': (20.706, -14.155), 'right_shoulder': (2.264, 138.56, -40.577),
         'right_elbow': (2.727, 8.586), 'right_wrist': (7.049, -5.959),
         'left_shoulder': (26.51, 178.007, -66.627), 'left_elbow': (13.801, -65.596),
@@ -364,31 +368,30 @@ def remove_avionics_unit():
     })
     human.KeyJoints(5.2, {
         'spine_lumbar': (32.881, -7.105, -12.728), 'spine_thoracic': (-0.406, 1.465, -12.338),
-        'neck': (-59.995, -15.839, -36.816), 'head': (-19.994, 11.247),
-        'right_clavicle': (9.049, -14.443), 'right_shoulder': (4.748, 156.769, -40.651),
-        'right_elbow': (6.44, 8.696), 'right_wrist': (10.297, -9.252),
-        'left_clavicle': (29.998, 13.032), 'left_shoulder': (24.343, 173.949, -65.971),
-        'left_elbow': (13.067, -65.507), 'left_wrist': (8.858, -0.002),
+        'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (9.049, -14.443),
+        'right_shoulder': (4.748, 156.769, -40.651), 'right_elbow': (6.44, 8.696),
+        'right_wrist': (10.297, -9.252), 'left_clavicle': (29.998, 13.032),
+        'left_shoulder': (24.343, 173.949, -65.971), 'left_elbow': (13.067, -65.507),
+        'left_wrist': (8.858, -0.002),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(5.3, {
         'spine_lumbar': (26.841, -4.427, -10.239), 'spine_thoracic': (-4.296, 1.876, -2.17),
-        'neck': (-59.998, -15.305, -32.046), 'head': (-19.955, 10.701),
-        'right_clavicle': (12.041, -13.509), 'right_shoulder': (3.081, 164.918, -40.403),
-        'right_elbow': (7.338, 8.719), 'right_wrist': (12.002, -10.794),
-        'left_clavicle': (30.0, 12.419), 'left_shoulder': (21.391, 164.907, -65.005),
-        'left_elbow': (8.872, -65.3), 'left_wrist': (7.817, -1.12),
+        'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (12.041, -13.509),
+        'right_shoulder': (3.081, 164.918, -40.403), 'right_elbow': (7.338, 8.719),
+        'right_wrist': (12.002, -10.794), 'left_clavicle': (30.0, 12.419),
+        'left_shoulder': (21.391, 164.907, -65.005), 'left_elbow': (8.872, -65.3),
+        'left_wrist': (7.817, -1.12),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(5.4, {
         'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
-        'neck': (-59.972, -13.619, -18.266), 'head': (-19.96, 11.106),
-        'right_clavicle': (14.226, -13.216), 'right_shoulder': (2.338, 164.98, -40.325),
-        'right_elbow': (7.133, 8.713), 'left_clavicle': (30.0, 12.219),
-        'left_shoulder': (20.833, 163.058, -64.828), 'left_elbow': (7.836, -65.257),
-        'left_wrist': (7.527, -1.361),
+        'neck': (-57.573, -19.113, -23.323), 'right_clavicle': (14.226, -13.216),
+        'right_shoulder': (2.338, 164.98, -40.325), 'right_elbow': (7.133, 8.713),
+        'left_clavicle': (30.0, 12.219), 'left_shoulder': (20.833, 163.058, -64.828),
+        'left_elbow': (7.836, -65.257), 'left_wrist': (7.527, -1.361),
     })
     human.KeyJoints(5.5, {'right_wrist': (12.09, -10.832)})
     human.KeyJoints(5.7, {
@@ -399,9 +402,8 @@ def remove_avionics_unit():
     })
     human.KeyJoints(6.0, {
         'spine_lumbar': (24.845, -2.888, -9.77), 'spine_thoracic': (-3.622, 0.612, -0.735),
-        'neck': (-59.973, -13.702, -18.222), 'right_clavicle': (14.115, -13.323),
-        'right_shoulder': (2.246, 165.103, -40.321), 'left_clavicle': (30.0, 12.326),
-        'left_shoulder': (20.93, 163.081, -64.822),
+        'right_clavicle': (14.115, -13.323), 'right_shoulder': (2.246, 165.103, -40.321),
+        'left_clavicle': (30.0, 12.326), 'left_shoulder': (20.93, 163.081, -64.822),
     })
     human.KeyJoints(6.1, {
         'spine_lumbar': (24.661, -2.602, -9.877), 'spine_thoracic': (-3.423, 0.217, -0.772),
@@ -414,9 +416,10 @@ def remove_avionics_unit():
     })
     human.KeyJoints(6.4, {'left_shoulder': (21.269, 163.162, -64.814)})
     human.KeyJoints(6.5, {'spine_thoracic': (-3.21, -0.206, -0.853)})
+    human.KeyJoints(6.6, {'neck': (-57.56, -19.126, -23.275)})
     human.KeyRoot(6.8, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'neck': (-59.97, -13.564, -18.166), 'head': (-19.958, 11.103),
+        'neck': (-57.552, -19.118, -23.282), 'head': (-20.0, 11.207),
         'right_clavicle': (13.624, -13.801), 'right_shoulder': (2.118, 165.654, -40.315),
         'left_clavicle': (30.0, 12.804), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
@@ -427,33 +430,33 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-59.6, -13.521, -18.053),
-        'head': (-19.834, 11.071), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-57.181, -18.994, -23.134),
+        'head': (-19.871, 11.173), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
         'right_knee': (5.94,), 'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014),
         'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
     human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'neck': (-48.216, -10.94, -14.604), 'head': (-16.046, 8.959),
+        'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
         'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,), 'right_ankle': (6.818, 0.388),
         'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,), 'left_ankle': (6.542, -0.385),
     })
     human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-27.0, -6.138, -8.178), 'head': (-8.985, 5.026), 'left_elbow': (8.013, -65.263),
+        'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891), 'left_elbow': (8.013, -65.263),
         'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
     human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'neck': (-7.205, -1.657, -2.182), 'head': (-2.398, 1.357),
+        'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
         'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (18.851, 1.631, 0.537),
         'right_knee': (38.348,), 'right_ankle': (18.377, 1.749),
         'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,), 'left_ankle': (8.083, -1.773),
     })
     human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'neck': (0.102, 0.0, 0.031), 'head': (0.034, 0.0), 'right_hip': (19.911, 4.648, -6.821),
+        'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (19.911, 4.648, -6.821),
         'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
         'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
     })
@@ -670,26 +673,26 @@ def remove_avionics_unit():
     human.LookAt((-110.0, 85.0, 40.0), start=11.003216, duration=1.397891)
     human.KeyRoot(11.1, (-70.776, 71.855, 43.313), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.1, {
-        'neck': (3.154, -3.042, 1.049), 'head': (1.352, -1.014),
+        'neck': (3.154, -3.042, 1.353), 'head': (1.352, 1.013),
         'right_hip': (19.146, 2.452, -2.188), 'right_knee': (47.265,),
         'right_ankle': (19.357, 1.629), 'left_hip': (14.241, -2.782, -0.706),
         'left_knee': (11.802,), 'left_ankle': (-2.421, -2.87),
     })
     human.KeyRoot(11.2, (-73.788, 71.983, 42.264), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.2, {
-        'neck': (11.143, -10.745, 3.707), 'head': (4.775, -3.582),
+        'neck': (11.143, -10.745, 4.779), 'head': (4.775, 3.577),
         'right_hip': (19.52, 1.751, -0.22), 'right_knee': (34.329,), 'right_ankle': (14.929, 1.58),
         'left_hip': (13.675, -1.903, -0.463), 'left_knee': (16.058,), 'left_ankle': (2.39, -1.959),
     })
     human.KeyRoot(11.3, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.3, {
-        'neck': (21.031, -20.28, 6.996), 'head': (9.013, -6.76),
+        'neck': (21.031, -20.28, 9.021), 'head': (9.013, 6.751),
         'right_hip': (10.584, 0.664, 0.124), 'right_knee': (16.964,), 'right_ankle': (6.389, 0.676),
         'left_hip': (10.552, -0.664, -0.124), 'left_knee': (16.897,), 'left_ankle': (6.345, -0.676),
     })
     human.KeyRoot(11.4, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.4, {
-        'neck': (29.879, -28.812, 9.94), 'head': (12.805, -9.604),
+        'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -700,14 +703,14 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(11.5, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.5, {
-        'neck': (34.748, -33.507, 11.559), 'head': (14.892, -11.169),
+        'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
         'right_shoulder': (2.557, 164.029, -39.354), 'right_elbow': (8.192, 8.141),
         'right_wrist': (12.393, -10.943), 'left_shoulder': (21.513, 161.878, -63.616),
         'left_elbow': (9.013, -65.117), 'left_wrist': (8.188, -1.538), 'right_knee': (5.111,),
         'left_knee': (5.084,),
     })
     human.KeyJoints(11.6, {
-        'neck': (35.0, -33.75, 11.643), 'head': (15.0, -11.25),
+        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
         'right_shoulder': (5.145, 154.451, -33.69), 'right_elbow': (12.97, 4.812),
         'right_wrist': (14.255, -11.833), 'left_shoulder': (22.411, 154.185, -56.567),
         'left_elbow': (14.903, -64.255), 'left_wrist': (11.281, -2.77), 'right_knee': (4.96,),
@@ -765,7 +768,7 @@ def remove_avionics_unit():
     human.KeyRoot(12.473107, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(12.473107, {
         'spine_lumbar': (24.445, -2.26, -10.161), 'spine_thoracic': (-3.188, -0.252, -0.868),
-        'neck': (35.0, -33.75, 11.643), 'head': (15.0, -11.25), 'right_clavicle': (13.623, -13.802),
+        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236), 'right_clavicle': (13.623, -13.802),
         'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
         'right_wrist': (39.035, -30.0), 'left_clavicle': (30.0, 12.805),
         'left_shoulder': (34.936, 29.031, 62.041), 'left_elbow': (93.029, -43.934),

@@ -281,19 +281,19 @@ def replace_fuel_filter():
     human.KeyRoot(3.8, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.8, {
         'spine_lumbar': (11.328, 0.01, 0.0), 'spine_thoracic': (1.908, 0.004, 0.0),
-        'neck': (0.049, -0.047, 0.024), 'head': (0.021, -0.016),
+        'neck': (0.049, -0.047, 0.026), 'head': (0.021, 0.015),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,), 'left_hip': (24.096, 0.0, 0.0),
         'left_knee': (126.122,),
     })
     human.KeyJoints(3.9, {
-        'neck': (9.267, -8.936, 4.5), 'head': (3.972, -2.979), 'right_toes': (86.654,),
+        'neck': (9.267, -8.936, 4.966), 'head': (3.972, 2.943), 'right_toes': (86.654,),
     })
-    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 12.282), 'head': (10.84, -8.13)})
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     human.KeyJoints(4.1, {
         'spine_lumbar': (11.381, 0.025, 0.022), 'spine_thoracic': (1.897, 0.018, 0.027),
-        'neck': (34.901, -33.655, 16.947), 'head': (14.958, -11.218),
+        'neck': (34.901, -33.655, 18.703), 'head': (14.958, 11.085),
         'right_clavicle': (-0.011, 0.022), 'right_shoulder': (8.631, 5.753, 11.45),
         'right_elbow': (34.367, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
@@ -301,55 +301,52 @@ def replace_fuel_filter():
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
         'spine_lumbar': (12.856, 0.448, 0.621), 'spine_thoracic': (1.587, 0.417, 0.779),
-        'neck': (35.0, -33.75, 14.543), 'right_clavicle': (-0.311, 0.621),
+        'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.311, 0.621),
         'right_shoulder': (9.657, 6.413, 11.189), 'right_elbow': (34.062, 17.189),
         'right_wrist': (-0.087, -0.101),
     })
     human.KeyJoints(4.3, {
         'spine_lumbar': (17.246, 1.715, 2.405), 'spine_thoracic': (0.657, 1.607, 3.026),
-        'neck': (35.0, -33.75, 8.62), 'head': (15.0, -11.25), 'right_clavicle': (-1.209, 2.405),
+        'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.209, 2.405),
         'right_shoulder': (12.72, 8.375, 10.412), 'right_elbow': (33.156, 17.19),
         'right_wrist': (-0.338, -0.392),
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (24.114, 3.743, 5.202), 'spine_thoracic': (-0.863, 3.471, 6.624),
-        'neck': (34.999, -31.961, 2.85), 'head': (14.994, -10.791),
-        'right_clavicle': (-2.656, 5.201), 'right_shoulder': (17.579, 11.441, 9.197),
-        'right_elbow': (31.739, 17.192),
+        'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.656, 5.201),
+        'right_shoulder': (17.579, 11.441, 9.197), 'right_elbow': (31.739, 17.192),
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (31.901, 6.259, 8.411), 'spine_thoracic': (-2.821, 5.614, 11.008),
-        'neck': (34.99, -17.46, -3.787), 'head': (14.949, -7.128),
-        'right_clavicle': (-4.463, 8.404), 'right_shoulder': (23.346, 14.88, 7.818),
-        'right_elbow': (30.13, 17.194),
+        'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.463, 8.404),
+        'right_shoulder': (23.346, 14.88, 7.818), 'right_elbow': (30.13, 17.194),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (38.502, 9.113, 11.285), 'spine_thoracic': (-5.015, 7.553, 15.49),
-        'neck': (34.979, 1.997, -10.275), 'head': (14.89, -2.429),
-        'right_clavicle': (-6.463, 11.25), 'right_shoulder': (28.872, 17.635, 6.647),
-        'right_elbow': (28.737, 17.197), 'right_wrist': (-1.544, -1.81),
+        'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.463, 11.25),
+        'right_shoulder': (28.872, 17.635, 6.647), 'right_elbow': (28.737, 17.197),
+        'right_wrist': (-1.544, -1.81),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (41.262, 12.215, 12.917), 'spine_thoracic': (-6.922, 8.711, 18.944),
-        'neck': (34.973, 14.666, -14.738), 'head': (14.86, 0.104),
+        'neck': (35.0, 12.864, -15.897), 'head': (15.0, -11.225),
         'right_clavicle': (-8.386, 12.794), 'right_shoulder': (32.462, 18.304, 6.151),
         'right_elbow': (28.03, 17.198), 'right_wrist': (-1.677, -2.032),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.751, 14.418, 13.242), 'spine_thoracic': (-7.87, 9.005, 20.455),
-        'neck': (34.992, 18.76, -17.069), 'head': (14.986, 0.21), 'right_clavicle': (-9.56, 13.02),
+        'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.56, 13.02),
         'right_shoulder': (33.519, 17.462, 6.235),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (40.441, 15.04, 13.278), 'spine_thoracic': (-8.106, 9.053, 20.813),
-        'neck': (34.923, 26.453, -17.421), 'head': (14.803, 0.769),
-        'right_clavicle': (-9.877, 13.025), 'right_shoulder': (33.713, 17.135, 6.288),
-        'right_elbow': (27.967, 17.197),
+        'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.877, 13.025),
+        'right_shoulder': (33.713, 17.135, 6.288), 'right_elbow': (27.967, 17.197),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {'neck': (34.89, 29.287, -17.301), 'head': (14.682, 1.177)})
+    human.KeyJoints(5.0, {'neck': (35.0, 27.038, -18.369)})
     human.KeyJoints(5.1, {'right_wrist': (-1.593, -2.042)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
@@ -382,7 +379,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(6.9, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
     human.KeyJoints(7.0, {'right_elbow': (27.588, 70.933)})
-    human.KeyJoints(7.1, {'right_elbow': (27.516, 79.835)})
+    human.KeyJoints(7.1, {'neck': (35.0, 27.038, -18.369), 'right_elbow': (27.516, 79.835)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
@@ -392,36 +389,34 @@ def replace_fuel_filter():
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
         'spine_lumbar': (40.438, 15.048, 13.278), 'spine_thoracic': (-8.109, 9.053, 20.818),
-        'neck': (34.89, 29.303, -17.272), 'head': (14.682, 1.173),
-        'right_shoulder': (33.629, 17.124, 6.292), 'right_elbow': (27.516, 80.0),
-        'right_wrist': (-1.48, -2.045), 'left_clavicle': (0.0, 0.001),
-        'left_shoulder': (8.595, 5.729, 11.459),
+        'neck': (35.0, 27.063, -18.314), 'right_shoulder': (33.629, 17.124, 6.292),
+        'right_elbow': (27.516, 80.0), 'right_wrist': (-1.48, -2.045),
+        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
         'spine_lumbar': (40.903, 14.8, 13.049), 'spine_thoracic': (-8.273, 8.983, 20.657),
-        'neck': (34.885, 30.218, -15.852), 'head': (14.662, 0.942),
-        'right_clavicle': (-9.879, 13.072), 'right_shoulder': (33.474, 16.721, 6.4),
-        'right_elbow': (28.338, 80.0), 'right_wrist': (-1.696, -1.978),
-        'left_clavicle': (-0.233, 0.357), 'left_shoulder': (9.112, 5.658, 11.425),
-        'left_elbow': (34.358, 17.188), 'left_wrist': (-0.007, -0.017),
+        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.072),
+        'right_shoulder': (33.474, 16.721, 6.4), 'right_elbow': (28.338, 80.0),
+        'right_wrist': (-1.696, -1.978), 'left_clavicle': (-0.233, 0.357),
+        'left_shoulder': (9.112, 5.658, 11.425), 'left_elbow': (34.358, 17.188),
+        'left_wrist': (-0.007, -0.017),
     })
     human.KeyJoints(7.4, {
         'spine_lumbar': (42.944, 13.709, 12.047), 'spine_thoracic': (-8.992, 8.672, 19.952),
-        'neck': (34.895, 33.256, -12.824), 'head': (14.625, 0.498),
-        'right_clavicle': (-9.871, 13.278), 'right_shoulder': (32.745, 14.967, 6.877),
-        'right_elbow': (31.994, 80.0), 'right_wrist': (-2.662, -1.661),
-        'left_clavicle': (-1.256, 1.922), 'left_shoulder': (11.395, 5.343, 11.275),
+        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.871, 13.278),
+        'right_shoulder': (32.745, 14.967, 6.877), 'right_elbow': (31.994, 80.0),
+        'right_wrist': (-2.662, -1.661), 'left_clavicle': (-1.256, 1.922),
+        'left_shoulder': (11.395, 5.343, 11.275),
     })
     human.KeyJoints(7.5, {
         'spine_lumbar': (46.663, 11.722, 10.22), 'spine_thoracic': (-10.302, 8.106, 18.666),
-        'neck': (34.997, 33.749, -7.727), 'head': (14.985, 10.753),
-        'right_shoulder': (31.69, 11.772, 7.764), 'right_elbow': (38.092, 80.0),
-        'right_wrist': (-4.286, -1.021), 'left_clavicle': (-3.12, 4.774),
-        'left_shoulder': (15.729, 4.777, 10.978), 'left_elbow': (34.219, 17.181),
-        'left_wrist': (-0.115, -0.199),
+        'neck': (35.0, 33.59, -10.033), 'right_shoulder': (31.69, 11.772, 7.764),
+        'right_elbow': (38.092, 80.0), 'right_wrist': (-4.286, -1.021),
+        'left_clavicle': (-3.12, 4.774), 'left_shoulder': (15.729, 4.777, 10.978),
+        'left_elbow': (34.219, 17.181), 'left_wrist': (-0.115, -0.199),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (51.271, 9.26, 7.956), 'neck': (35.0, 33.75, -3.551), 'head': (15.0, 11.25),
+        'spine_lumbar': (51.271, 9.26, 7.956), 'neck': (35.0, 33.675, -6.28),
         'right_clavicle': (-9.837, 14.119), 'right_shoulder': (30.694, 7.821, 8.905),
         'right_elbow': (44.906, 80.0), 'right_wrist': (-6.095, -0.151),
         'left_clavicle': (-5.428, 8.307), 'left_shoulder': (21.653, 4.146, 10.513),
@@ -429,7 +424,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(7.7, {
         'spine_lumbar': (55.63, 6.93, 5.815), 'spine_thoracic': (-13.461, 6.741, 15.568),
-        'neck': (35.0, 30.182, -0.728), 'head': (15.0, 10.061), 'right_clavicle': (-9.82, 14.559),
+        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.82, 14.559),
         'right_shoulder': (29.812, 4.148, 10.025), 'right_elbow': (51.053, 80.0),
         'right_wrist': (-7.721, 0.747), 'left_clavicle': (-7.613, 11.649),
         'left_shoulder': (27.369, 3.891, 9.861), 'left_elbow': (38.481, 17.191),
@@ -437,7 +432,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(7.8, {
         'spine_lumbar': (58.673, 5.304, 4.32), 'spine_thoracic': (-14.533, 6.277, 14.516),
-        'neck': (35.0, 7.403, 0.986), 'head': (15.0, 2.468), 'right_clavicle': (-9.808, 14.866),
+        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.808, 14.866),
         'right_shoulder': (29.212, 1.668, 10.885), 'right_elbow': (55.215, 80.0),
         'right_wrist': (-8.887, 1.442), 'left_clavicle': (-9.137, 13.983),
         'left_shoulder': (28.438, 4.737, 9.082), 'left_elbow': (50.378, 17.242),
@@ -446,44 +441,44 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
         'spine_lumbar': (59.821, 4.691, 3.756), 'spine_thoracic': (-14.937, 6.102, 14.119),
-        'neck': (35.0, -20.289, 2.147), 'head': (15.0, -6.763),
-        'right_shoulder': (28.994, 0.774, 11.256), 'right_elbow': (56.752, 80.0),
-        'right_wrist': (-9.374, 1.73), 'left_clavicle': (-9.713, 14.863),
-        'left_shoulder': (25.815, 5.859, 8.603), 'left_elbow': (62.107, 17.294),
-        'left_wrist': (-3.41, 6.275),
+        'neck': (35.0, 32.785, -0.758), 'right_shoulder': (28.994, 0.774, 11.256),
+        'right_elbow': (56.752, 80.0), 'right_wrist': (-9.374, 1.73),
+        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.815, 5.859, 8.603),
+        'left_elbow': (62.107, 17.294), 'left_wrist': (-3.41, 6.275),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, -33.75, 2.574), 'head': (15.0, -11.25),
-        'right_clavicle': (-9.802, 15.0), 'right_shoulder': (28.96, 0.636, 11.314),
-        'right_elbow': (56.991, 80.0), 'right_wrist': (-9.449, 1.776),
-        'left_clavicle': (-9.802, 15.0), 'left_shoulder': (25.156, 6.092, 8.516),
-        'left_elbow': (64.45, 17.304), 'left_wrist': (-3.653, 6.85),
+        'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, 32.785, -0.758),
+        'head': (15.0, -11.25), 'right_clavicle': (-9.802, 15.0),
+        'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
+        'right_wrist': (-9.449, 1.776), 'left_clavicle': (-9.802, 15.0),
+        'left_shoulder': (25.156, 6.092, 8.516), 'left_elbow': (64.45, 17.304),
+        'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, -33.13, 1.996), 'head': (14.999, -11.087),
+        'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
         'right_shoulder': (30.252, 0.886, 11.121), 'right_elbow': (54.286, 79.958),
         'right_wrist': (-8.801, 1.617),
     })
     human.KeyJoints(8.2, {
-        'neck': (34.999, -23.147, -7.323), 'head': (14.979, -8.466),
+        'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
         'right_shoulder': (32.349, 3.754, 8.711), 'right_elbow': (47.033, 76.984),
         'right_wrist': (-11.211, 2.124),
     })
     human.KeyJoints(8.3, {
-        'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (34.998, -7.336, -22.084),
-        'head': (14.949, -4.315), 'right_shoulder': (29.538, 10.952, 2.523),
+        'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (35.0, 25.451, -24.003),
+        'head': (10.824, -10.971), 'right_shoulder': (29.538, 10.952, 2.523),
         'right_elbow': (44.184, 67.974), 'right_wrist': (-23.534, 4.862),
     })
     human.KeyJoints(8.4, {
-        'neck': (34.997, 6.0, -34.533), 'head': (14.923, -0.813),
+        'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
         'right_shoulder': (22.964, 20.52, -5.758), 'right_elbow': (46.936, 55.679),
         'right_wrist': (-42.522, 8.912),
     })
     human.KeyJoints(8.5, {
-        'neck': (34.997, 9.416, -37.722), 'head': (14.916, 0.084),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
         'right_shoulder': (21.357, 30.49, -13.792), 'right_elbow': (40.813, 44.146),
         'right_wrist': (-56.169, 11.685),
     })
@@ -499,27 +494,27 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'neck': (34.997, 9.416, -37.722), 'head': (14.916, 0.084),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
         'right_shoulder': (29.481, 39.714, -18.624), 'right_elbow': (18.233, 34.786),
         'right_wrist': (-52.264, 11.178),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
     human.KeyJoints(8.9, {
-        'neck': (33.324, 12.834, -40.172), 'head': (14.865, 1.663),
+        'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
         'right_wrist': (-55.044, 11.187),
     })
-    human.KeyJoints(9.0, {'neck': (29.354, 20.946, -45.987), 'head': (14.742, 5.413)})
+    human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.1, {
         'spine_lumbar': (60.0, 4.605, 3.656), 'spine_thoracic': (-14.996, 6.068, 14.029),
-        'neck': (25.277, 29.276, -51.958), 'head': (14.617, 9.263),
+        'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
         'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
         'left_elbow': (64.319, 17.328), 'left_wrist': (-3.679, 6.829),
     })
     human.KeyJoints(9.2, {
         'spine_lumbar': (60.0, 5.155, 2.991), 'spine_thoracic': (-14.782, 5.645, 12.458),
-        'neck': (23.289, 33.338, -54.869), 'head': (14.556, 11.14),
+        'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
         'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.777, 15.0),
         'left_shoulder': (25.706, 6.129, 9.02), 'left_elbow': (63.166, 18.604),
         'left_wrist': (-5.718, 7.298),
@@ -528,80 +523,81 @@ def replace_fuel_filter():
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
-        'neck': (27.055, 30.732, -44.268), 'head': (14.639, 7.605),
-        'right_shoulder': (29.377, 39.703, -18.644), 'left_shoulder': (27.297, 6.302, 10.676),
-        'left_elbow': (59.267, 22.894), 'left_wrist': (-12.571, 8.874),
+        'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
+        'left_shoulder': (27.297, 6.302, 10.676), 'left_elbow': (59.267, 22.894),
+        'left_wrist': (-12.571, 8.874),
     })
     human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
-        'neck': (33.492, 26.302, -22.951), 'head': (14.804, 1.613), 'right_elbow': (18.333, 34.786),
+        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
         'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
         'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
     })
     human.KeyJoints(9.5, {
         'spine_lumbar': (60.0, 13.671, -7.308), 'spine_thoracic': (-10.514, -1.074, -11.877),
-        'neck': (35.0, 33.623, -9.159), 'head': (14.902, 0.641), 'left_clavicle': (-9.292, 14.975),
-        'left_shoulder': (33.625, 7.497, 16.542), 'left_elbow': (43.611, 38.329),
-        'left_wrist': (-36.733, 14.357),
+        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893),
+        'left_clavicle': (-9.292, 14.975), 'left_shoulder': (33.625, 7.497, 16.542),
+        'left_elbow': (43.611, 38.329), 'left_wrist': (-36.733, 14.357),
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
-        'neck': (34.998, 16.519, -1.023), 'head': (14.943, 0.367), 'right_wrist': (-52.744, 11.203),
+        'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
         'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
         'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
-        'neck': (34.988, -7.889, 5.158), 'head': (14.968, -0.027), 'right_wrist': (-52.409, 11.203),
+        'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
         'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
         'left_wrist': (-47.473, 15.797),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
-        'neck': (34.494, 0.0, 8.375), 'head': (14.783, 0.0), 'left_clavicle': (-9.973, 14.998),
-        'left_shoulder': (52.821, 12.987, 20.099), 'left_elbow': (12.753, 51.643),
-        'left_wrist': (-46.123, 15.05),
+        'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
+        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.821, 12.987, 20.099),
+        'left_elbow': (12.753, 51.643), 'left_wrist': (-46.123, 15.05),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
     human.KeyJoints(9.9, {
-        'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.832, 0.0, 9.003),
-        'head': (13.642, 0.0), 'left_shoulder': (53.321, 13.042, 20.107),
+        'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
         'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.832, 0.0, 9.003), 'head': (13.642, 0.0),
-        'left_shoulder': (53.321, 13.042, 20.107), 'left_elbow': (12.071, 51.745),
-        'left_wrist': (-45.774, 14.924),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
+        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
-        'neck': (32.169, -0.951, 14.989), 'head': (13.777, -0.004),
+        'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
         'left_shoulder': (52.255, 13.363, 19.269), 'left_elbow': (14.124, 51.573),
         'left_wrist': (-46.194, 14.983),
     })
     human.KeyJoints(10.3, {
-        'neck': (33.261, -4.035, 34.395), 'left_shoulder': (44.901, 15.561, 13.318),
-        'left_elbow': (28.254, 50.351), 'left_wrist': (-48.75, 15.28),
+        'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
+        'left_shoulder': (44.901, 15.561, 13.318), 'left_elbow': (28.254, 50.351),
+        'left_wrist': (-48.75, 15.28),
     })
     human.KeyJoints(10.4, {
-        'neck': (34.437, -7.358, 55.302), 'head': (14.682, -0.028),
+        'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
         'left_shoulder': (32.623, 19.142, 3.357), 'left_elbow': (50.374, 48.262),
         'left_wrist': (-52.717, 15.702),
     })
     human.KeyJoints(10.5, {
-        'neck': (34.988, -8.914, 65.094), 'head': (14.902, -0.034),
+        'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
         'left_shoulder': (16.23, 23.477, -9.859), 'left_elbow': (73.078, 45.265),
         'left_wrist': (-56.891, 15.917),
     })
     human.KeyJoints(10.6, {
-        'left_shoulder': (-5.395, 27.919, -26.805), 'left_elbow': (86.066, 40.686),
-        'left_wrist': (-59.878, 14.848),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-5.395, 27.919, -26.805),
+        'left_elbow': (86.066, 40.686), 'left_wrist': (-59.878, 14.848),
     })
     human.KeyJoints(10.7, {
-        'left_shoulder': (-26.1, 31.869, -44.096), 'left_elbow': (85.741, 35.592),
-        'left_wrist': (-61.195, 11.873),
+        'head': (14.88, 11.25), 'left_shoulder': (-26.1, 31.869, -44.096),
+        'left_elbow': (85.741, 35.592), 'left_wrist': (-61.195, 11.873),
     })
     human.KeyJoints(10.8, {
         'left_shoulder': (-38.072, 36.412, -60.79), 'left_elbow': (87.06, 32.389),
@@ -623,7 +619,8 @@ def replace_fuel_filter():
         'left_wrist': (-68.055, 8.983),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.599854)
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
+    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.4, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),
@@ -641,32 +638,33 @@ def replace_fuel_filter():
     })
     human.KeyJoints(11.7, {
         'spine_lumbar': (59.957, 4.801, -6.843), 'spine_thoracic': (-1.463, -2.395, -22.016),
-        'neck': (34.988, -8.914, 65.094), 'right_shoulder': (33.672, 20.18, -12.438),
+        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.672, 20.18, -12.438),
         'right_elbow': (23.982, 37.322), 'right_wrist': (-51.688, 11.772),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.736707, duration=0.382234)
+    human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
     human.KeyJoints(11.8, {
         'spine_lumbar': (59.493, -5.403, -1.349), 'spine_thoracic': (-5.618, 2.74, -16.608),
-        'neck': (34.973, -8.219, 60.633), 'right_clavicle': (-9.854, 14.931),
+        'neck': (34.474, -10.956, 59.829), 'right_clavicle': (-9.854, 14.931),
         'right_shoulder': (36.642, 6.302, -7.959), 'right_elbow': (28.171, 39.139),
         'right_wrist': (-51.275, 12.281),
     })
     human.KeyJoints(11.9, {
         'spine_lumbar': (57.59, -13.557, 3.099), 'spine_thoracic': (-9.555, 6.955, -12.196),
-        'neck': (34.906, -5.232, 41.444), 'right_shoulder': (38.72, -6.64, -3.669),
-        'right_elbow': (32.291, 40.84), 'right_wrist': (-51.199, 12.982),
+        'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
+        'right_shoulder': (38.72, -6.64, -3.669), 'right_elbow': (32.291, 40.84),
+        'right_wrist': (-51.199, 12.982),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
         'spine_lumbar': (55.373, -17.948, 5.539), 'spine_thoracic': (-12.008, 9.312, -9.764),
-        'neck': (34.828, -1.789, 19.326), 'right_clavicle': (-9.308, 14.363),
-        'right_shoulder': (39.507, -14.907, -0.872), 'right_elbow': (35.004, 41.925),
-        'right_wrist': (-51.356, 13.561),
+        'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
+        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.507, -14.907, -0.872),
+        'right_elbow': (35.004, 41.925), 'right_wrist': (-51.356, 13.561),
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (54.72, -19.053, 6.157), 'spine_thoracic': (-12.648, 9.911, -9.147),
-        'neck': (34.788, -0.008, 7.881), 'right_shoulder': (39.676, -17.087, -0.131),
+        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.676, -17.087, -0.131),
         'right_elbow': (35.724, 42.211), 'right_wrist': (-51.411, 13.722),
         'left_shoulder': (-41.45, 39.188, -75.798),
     })
@@ -674,9 +672,9 @@ def replace_fuel_filter():
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'neck': (34.829, 0.0, 8.005), 'right_clavicle': (-9.216, 14.273),
-        'right_shoulder': (39.601, -17.113, -0.126), 'right_elbow': (35.832, 42.271),
-        'right_wrist': (-51.485, 13.749),
+        'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
+        'right_clavicle': (-9.216, 14.273), 'right_shoulder': (39.601, -17.113, -0.126),
+        'right_elbow': (35.832, 42.271), 'right_wrist': (-51.485, 13.749),
     })
     human.KeyJoints(12.3, {
         'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),
@@ -811,8 +809,9 @@ def replace_fuel_filter():
         'right_wrist': (-54.053, 15.799),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.390297)
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
     human.KeyJoints(15.5, {
+        'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
         'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
         'right_wrist': (-53.413, 15.296),
     })
@@ -825,9 +824,11 @@ def replace_fuel_filter():
         'right_wrist': (-51.411, 13.723),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
+    human.KeyJoints(15.8, {'neck': (30.989, -25.025, 10.522)})
+    human.KeyJoints(15.9, {'head': (15.0, 11.25)})
     human.KeyJoints(18.7, {
         'spine_lumbar': (54.717, -19.058, 6.16), 'spine_thoracic': (-12.652, 9.915, -9.144),
-        'neck': (34.829, 0.0, 8.005), 'head': (14.927, 0.0), 'right_clavicle': (-9.216, 14.273),
+        'neck': (30.989, -25.03, 10.525), 'head': (15.0, 11.25), 'right_clavicle': (-9.216, 14.273),
         'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
         'right_wrist': (-51.411, 13.723), 'left_clavicle': (-10.0, 15.0),
         'left_shoulder': (-41.45, 39.188, -75.798), 'left_elbow': (95.45, 31.457),
@@ -837,15 +838,15 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: gaze on head
     human.KeyJoints(18.8, {
         'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
-        'neck': (26.751, 0.0, 6.181), 'head': (11.465, 0.0), 'right_clavicle': (-7.378, 11.426),
-        'right_shoulder': (33.617, -12.127, -4.125), 'right_elbow': (35.037, -4.545),
-        'right_wrist': (-40.73, 10.834), 'left_clavicle': (-8.005, 11.955),
-        'left_shoulder': (-31.283, 32.882, -64.542), 'left_elbow': (83.101, 28.61),
-        'left_wrist': (-54.226, 7.188),
+        'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
+        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
+        'right_elbow': (35.037, -4.545), 'right_wrist': (-40.73, 10.834),
+        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
+        'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
     })
     human.KeyJoints(18.9, {
         'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
-        'neck': (10.863, 0.0, 2.525), 'head': (4.656, 0.0), 'right_clavicle': (-3.51, 5.435),
+        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
         'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
         'right_wrist': (-19.323, 5.147), 'left_clavicle': (-3.808, 5.667),
         'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
@@ -854,7 +855,7 @@ def replace_fuel_filter():
     human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
         'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
-        'neck': (0.234, 0.0, 0.077), 'head': (0.1, 0.0), 'right_clavicle': (-0.394, 0.61),
+        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
         'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
         'right_wrist': (-2.049, 0.569), 'left_clavicle': (-0.428, 0.603),
         'left_shoulder': (6.609, 8.924, -22.29), 'left_elbow': (36.66, 17.797),
@@ -865,12 +866,12 @@ def replace_fuel_filter():
     human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.1, {
         'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
-        'neck': (-0.084, 0.0, 0.0), 'head': (-0.036, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.602, 7.531, -20.027), 'right_elbow': (34.336, 17.246),
-        'right_wrist': (0.116, -0.007), 'left_clavicle': (0.0, -0.031),
-        'left_shoulder': (8.761, 7.55, -19.913), 'left_elbow': (34.061, 17.189),
-        'left_wrist': (0.143, -0.046), 'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,),
-        'left_hip': (30.865, 0.0, 0.0), 'left_knee': (132.894,),
+        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
+        'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
+        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.761, 7.55, -19.913),
+        'left_elbow': (34.061, 17.189), 'left_wrist': (0.143, -0.046),
+        'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
+        'left_knee': (132.894,),
     })
     human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.2, {
@@ -968,9 +969,9 @@ def replace_fuel_filter():
     human.KeyRoot(20.3, (3.209, 41.267, 37.579), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.3, {
         'spine_lumbar': (0.941, 0.0, 0.0), 'spine_thoracic': (0.143, 0.0, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (32.658, 0.0, 0.0), 'right_knee': (134.703,),
-        'right_ankle': (15.376, 0.0), 'left_hip': (93.997, 0.0, 0.0), 'left_knee': (126.997,),
-        'left_ankle': (20.0, 0.0), 'right_toes': (86.539,), 'left_toes': (12.977,),
+        'right_hip': (32.658, 0.0, 0.0), 'right_knee': (134.703,), 'right_ankle': (15.376, 0.0),
+        'left_hip': (93.997, 0.0, 0.0), 'left_knee': (126.997,), 'left_ankle': (20.0, 0.0),
+        'right_toes': (86.539,), 'left_toes': (12.977,),
     })
     human.KeyRoot(20.4, (3.978, 45.913, 33.6), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.4, {
@@ -1031,7 +1032,7 @@ def replace_fuel_filter():
     human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.2, {
         'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
-        'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
         'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
         'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
     })

@@ -169,603 +169,420 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.491, 0.788, 1.771), 'spine_thoracic': (-3.738, -2.655, 1.716),
-        'neck': (0.307, -0.418, -26.819), 'head': (0.208, 0.0), 'right_clavicle': (3.831, 0.54),
-        'right_shoulder': (88.512, 12.221, -0.409), 'right_elbow': (32.038, 10.389),
-        'right_wrist': (-1.872, -28.359),
+        'spine_lumbar': (7.139, 1.031, 1.356), 'spine_thoracic': (-2.498, -2.44, 1.432),
+        'neck': (-0.585, -0.75, -26.415), 'right_clavicle': (9.708, 0.035),
+        'right_shoulder': (86.736, 15.402, 1.52), 'right_elbow': (33.601, 12.901),
+        'right_wrist': (-1.419, -24.475),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (12.822, 1.991, 1.007), 'spine_thoracic': (-8.49, -8.657, 1.371),
-        'neck': (0.464, -0.408, -29.369), 'head': (0.358, -0.001),
-        'right_clavicle': (14.427, -2.054), 'right_shoulder': (79.092, 22.193, 5.308),
-        'right_elbow': (36.96, 17.51), 'right_wrist': (-1.013, -13.764),
+        'spine_lumbar': (10.06, 1.696, 1.151), 'spine_thoracic': (-4.875, -4.751, 1.473),
+        'neck': (-0.552, -0.759, -27.539), 'right_clavicle': (27.128, 4.181),
+        'right_shoulder': (74.582, 34.572, 6.225), 'right_elbow': (33.558, 20.929),
+        'right_wrist': (-1.365, -2.109),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (16.643, 3.167, 0.697), 'spine_thoracic': (-10.249, -10.0, 1.577),
-        'neck': (-0.59, -0.831, -30.585), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.66, -3.621), 'right_shoulder': (76.24, 28.532, 8.636),
-        'right_elbow': (39.801, 21.999), 'right_wrist': (-0.898, -5.312),
+        'right_clavicle': (26.16, -2.665), 'right_shoulder': (72.392, 25.847, 5.237),
+        'right_elbow': (40.16, 18.304), 'right_wrist': (-2.434, -8.568),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (7.797, -0.624, 2.475), 'spine_thoracic': (-11.225, -6.458, 2.352),
-        'neck': (3.83, 0.867, -29.613), 'head': (3.974, 0.003), 'right_clavicle': (13.431, -2.268),
-        'right_shoulder': (70.574, 20.365, 2.567), 'right_elbow': (35.65, 14.611),
-        'right_wrist': (-2.083, -14.344),
+        'right_clavicle': (15.633, -9.066), 'right_shoulder': (77.969, 4.517, -3.017),
+        'right_elbow': (45.202, 6.085), 'right_wrist': (-5.619, -28.936),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (5.946, 0.24, 4.121), 'spine_thoracic': (-8.687, -2.316, 3.498),
-        'neck': (2.617, 0.405, -29.633), 'head': (2.672, 0.001), 'right_clavicle': (5.529, 0.049),
-        'right_shoulder': (81.338, 14.361, -3.716), 'right_elbow': (31.637, 7.89),
-        'right_wrist': (-3.2, -26.221),
+        'right_clavicle': (7.293, -4.129), 'right_shoulder': (86.025, 5.964, -3.702),
+        'right_elbow': (38.48, 6.128), 'right_wrist': (-4.344, -29.848),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.275, -1.6, 1.711),
-        'neck': (-0.635, -0.764, -26.159), 'head': (-0.798, -0.002), 'right_clavicle': (2.5, 0.963),
-        'right_shoulder': (91.318, 10.967, -0.401), 'right_elbow': (32.588, 10.144),
-        'right_wrist': (-1.642, -28.665),
+        'right_clavicle': (2.068, -3.468), 'right_shoulder': (89.827, 6.81, -0.539),
+        'right_elbow': (35.864, 9.099), 'right_wrist': (-2.175, -29.571),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (9.672, 1.24, 1.592), 'spine_thoracic': (-6.979, -6.037, 1.663),
-        'neck': (0.852, -0.242, -28.408), 'head': (0.782, 0.0), 'right_clavicle': (9.13, -0.697),
-        'right_shoulder': (82.38, 17.402, 2.162), 'right_elbow': (34.6, 13.705),
-        'right_wrist': (-1.508, -20.603),
+        'right_clavicle': (20.16, 1.002), 'right_shoulder': (79.202, 26.693, 5.486),
+        'right_elbow': (34.787, 18.767), 'right_wrist': (-0.998, -10.261),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (16.119, 3.127, 0.536), 'spine_thoracic': (-9.722, -10.0, 1.318),
-        'neck': (-0.562, -0.812, -30.135), 'head': (-0.752, -0.004),
-        'right_clavicle': (20.283, -3.35), 'right_shoulder': (77.284, 27.339, 8.337),
-        'right_elbow': (39.499, 21.417), 'right_wrist': (-0.826, -6.729),
+        'right_clavicle': (28.079, 3.91), 'right_shoulder': (73.416, 34.482, 5.881),
+        'right_elbow': (34.197, 20.629), 'right_wrist': (-1.629, -1.923),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (13.888, 2.081, 1.006), 'spine_thoracic': (-10.662, -9.571, 1.661),
-        'neck': (1.037, -0.198, -29.783), 'head': (0.972, 0.0), 'right_clavicle': (19.932, -3.42),
-        'right_shoulder': (73.135, 26.536, 7.669), 'right_elbow': (39.276, 20.584),
-        'right_wrist': (-1.162, -6.334),
+        'right_clavicle': (20.782, -9.09), 'right_shoulder': (73.837, 11.874, 1.694),
+        'right_elbow': (45.534, 11.959), 'right_wrist': (-3.988, -21.413),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (4.972, -0.708, 4.616), 'spine_thoracic': (-11.285, -2.98, 3.807),
-        'neck': (4.357, 1.048, -30.572), 'head': (4.533, 0.004), 'right_clavicle': (7.333, -0.665),
-        'right_shoulder': (75.141, 15.762, -4.017), 'right_elbow': (31.647, 7.865),
-        'right_wrist': (-3.573, -23.944),
+        'right_clavicle': (11.213, -5.796), 'right_shoulder': (82.699, 4.564, -4.957),
+        'right_elbow': (41.255, 4.625), 'right_wrist': (-5.644, -30.0),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.564, 1.186, 1.895), 'spine_thoracic': (-2.684, -1.649, 1.827),
-        'neck': (-0.435, -0.692, -26.389), 'head': (-0.585, -0.002), 'right_clavicle': (2.7, 0.905),
-        'right_shoulder': (90.719, 11.2, -0.615), 'right_elbow': (32.529, 10.001),
-        'right_wrist': (-1.74, -28.514),
+        'right_clavicle': (1.322, -3.437), 'right_shoulder': (90.295, 6.337, -0.742),
+        'right_elbow': (35.73, 8.835), 'right_wrist': (-2.161, -29.986),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (7.308, 1.147, 2.118), 'spine_thoracic': (-5.273, -3.412, 2.043),
-        'neck': (0.672, -0.29, -27.405), 'head': (0.597, 0.0), 'right_clavicle': (5.091, 0.462),
-        'right_shoulder': (86.252, 13.691, -0.399), 'right_elbow': (32.881, 10.751),
-        'right_wrist': (-2.068, -25.869),
+        'right_clavicle': (11.229, -2.469), 'right_shoulder': (84.335, 15.258, 2.418),
+        'right_elbow': (36.139, 13.631), 'right_wrist': (-1.5, -21.691),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (13.973, 2.428, 0.852), 'spine_thoracic': (-8.959, -9.294, 1.343),
-        'neck': (0.173, -0.522, -29.573), 'head': (0.043, -0.001),
-        'right_clavicle': (16.269, -2.455), 'right_shoulder': (78.382, 23.872, 6.332),
-        'right_elbow': (37.9, 18.791), 'right_wrist': (-0.933, -11.335),
+        'right_clavicle': (27.447, 4.291), 'right_shoulder': (74.288, 34.793, 6.15),
+        'right_elbow': (33.586, 20.93), 'right_wrist': (-1.416, -1.871),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (16.603, 3.139, 0.756), 'spine_thoracic': (-10.325, -10.0, 1.636),
-        'neck': (-0.529, -0.81, -30.663), 'head': (-0.721, -0.005),
-        'right_clavicle': (21.721, -3.634), 'right_shoulder': (76.031, 28.567, 8.586),
-        'right_elbow': (39.777, 21.972), 'right_wrist': (-0.919, -5.24),
+        'right_clavicle': (25.585, -3.716), 'right_shoulder': (72.397, 24.091, 4.966),
+        'right_elbow': (41.066, 17.679), 'right_wrist': (-2.591, -10.085),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (6.227, -1.114, 3.181), 'spine_thoracic': (-11.498, -5.301, 2.782),
-        'neck': (4.454, 1.099, -29.899), 'head': (4.641, 0.005), 'right_clavicle': (11.313, -1.826),
-        'right_shoulder': (70.902, 18.586, 0.344), 'right_elbow': (34.17, 12.269),
-        'right_wrist': (-2.57, -17.564),
+        'right_clavicle': (14.778, -8.579), 'right_shoulder': (78.877, 4.198, -3.738),
+        'right_elbow': (44.636, 5.38), 'right_wrist': (-5.769, -29.455),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (6.222, 0.493, 3.62), 'spine_thoracic': (-7.365, -2.203, 3.126),
-        'neck': (1.896, 0.145, -28.933), 'head': (1.901, 0.001), 'right_clavicle': (4.964, 0.233),
-        'right_shoulder': (83.564, 13.765, -2.993), 'right_elbow': (31.862, 8.406),
-        'right_wrist': (-2.863, -26.72),
+        'right_clavicle': (5.917, -3.887), 'right_shoulder': (87.062, 6.116, -3.078),
+        'right_elbow': (37.752, 6.746), 'right_wrist': (-3.847, -29.86),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'spine_lumbar': (6.605, 1.235, 1.776), 'spine_thoracic': (-2.473, -1.698, 1.741),
-        'neck': (-0.543, -0.731, -26.24), 'head': (-0.7, -0.002), 'right_clavicle': (2.639, 0.941),
-        'right_shoulder': (91.0, 11.12, -0.41), 'right_elbow': (32.592, 10.155),
-        'right_wrist': (-1.681, -28.524),
+        'right_clavicle': (4.035, -3.52), 'right_shoulder': (88.569, 7.807, -0.448),
+        'right_elbow': (36.299, 9.425), 'right_wrist': (-2.357, -28.666),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (10.741, 1.452, 1.413), 'spine_thoracic': (-7.58, -7.012, 1.563),
-        'neck': (0.786, -0.274, -28.784), 'head': (0.709, 0.0), 'right_clavicle': (10.871, -1.154),
-        'right_shoulder': (81.079, 19.011, 3.201), 'right_elbow': (35.407, 14.953),
-        'right_wrist': (-1.321, -18.265),
+        'right_clavicle': (22.566, 2.225), 'right_shoulder': (77.827, 29.949, 6.16),
+        'right_elbow': (34.199, 20.012), 'right_wrist': (-0.998, -6.93),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (16.439, 3.159, 0.617), 'spine_thoracic': (-10.021, -10.0, 1.46),
-        'neck': (-0.591, -0.828, -30.381), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.097, -3.512), 'right_shoulder': (76.698, 28.044, 8.535),
-        'right_elbow': (39.69, 21.778), 'right_wrist': (-0.864, -5.884),
+        'right_clavicle': (28.114, 2.776), 'right_shoulder': (72.997, 33.319, 5.887),
+        'right_elbow': (35.286, 20.426), 'right_wrist': (-1.78, -2.645),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (11.89, 1.171, 1.337), 'spine_thoracic': (-10.798, -8.734, 1.772),
-        'neck': (1.999, 0.173, -29.513), 'head': (2.009, 0.001), 'right_clavicle': (18.007, -3.097),
-        'right_shoulder': (71.887, 24.608, 6.434), 'right_elbow': (38.403, 19.005),
-        'right_wrist': (-1.363, -8.36),
+        'right_clavicle': (19.147, -9.706), 'right_shoulder': (74.874, 8.699, 0.234),
+        'right_elbow': (45.978, 9.91), 'right_wrist': (-4.54, -24.523),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (5.177, -0.361, 4.612), 'spine_thoracic': (-10.693, -2.649, 3.815),
-        'neck': (3.912, 0.883, -30.345), 'head': (4.057, 0.003), 'right_clavicle': (6.625, -0.378),
-        'right_shoulder': (77.131, 15.282, -4.123), 'right_elbow': (31.547, 7.676),
-        'right_wrist': (-3.563, -24.96),
+        'right_clavicle': (10.025, -5.118), 'right_shoulder': (83.803, 5.051, -4.897),
+        'right_elbow': (40.275, 4.788), 'right_wrist': (-5.355, -29.984),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'right_clavicle': (0.956, -3.416), 'right_shoulder': (90.548, 6.338, -0.551),
+        'right_elbow': (35.579, 9.002), 'right_wrist': (-2.026, -30.0),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (7.922, 1.113, 1.964), 'spine_thoracic': (-5.806, -4.163, 1.923),
-        'neck': (0.78, -0.255, -27.688), 'head': (0.71, 0.0), 'right_clavicle': (6.18, 0.136),
-        'right_shoulder': (85.065, 14.688, 0.34), 'right_elbow': (33.315, 11.56),
-        'right_wrist': (-1.91, -24.501),
+        'right_clavicle': (14.247, -1.465), 'right_shoulder': (82.589, 19.003, 3.544),
+        'right_elbow': (35.801, 15.438), 'right_wrist': (-1.235, -18.006),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (14.87, 2.76, 0.677), 'spine_thoracic': (-9.232, -9.712, 1.29),
-        'neck': (-0.111, -0.631, -29.675), 'head': (-0.265, -0.002),
-        'right_clavicle': (17.832, -2.813), 'right_shoulder': (77.991, 25.235, 7.209),
-        'right_elbow': (38.592, 19.887), 'right_wrist': (-0.863, -9.462),
+        'right_clavicle': (27.721, 4.382), 'right_shoulder': (74.049, 34.978, 6.081),
+        'right_elbow': (33.585, 20.93), 'right_wrist': (-1.458, -1.669),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.303, 3.015, 0.807), 'spine_thoracic': (-10.447, -10.0, 1.659),
-        'neck': (-0.303, -0.723, -30.615), 'head': (-0.477, -0.004),
-        'right_clavicle': (21.669, -3.641), 'right_shoulder': (75.405, 28.476, 8.507),
-        'right_elbow': (39.762, 21.864), 'right_wrist': (-0.968, -5.159),
+        'right_clavicle': (24.081, -6.002), 'right_shoulder': (72.622, 19.846, 4.11),
+        'right_elbow': (43.007, 15.973), 'right_wrist': (-2.996, -13.898),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (5.294, -1.172, 3.82), 'spine_thoracic': (-11.608, -4.326, 3.207),
-        'neck': (4.699, 1.187, -30.188), 'head': (4.902, 0.005), 'right_clavicle': (9.624, -1.41),
-        'right_shoulder': (71.798, 17.297, -1.573), 'right_elbow': (32.99, 10.315),
-        'right_wrist': (-3.023, -20.267),
+        'right_clavicle': (13.556, -7.623), 'right_shoulder': (80.248, 3.914, -4.597),
+        'right_elbow': (43.498, 4.612), 'right_wrist': (-5.92, -29.961),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.389, 0.754, 3.047), 'spine_thoracic': (-5.788, -2.028, 2.699),
-        'neck': (1.095, -0.143, -28.097), 'head': (1.046, 0.0), 'right_clavicle': (4.219, 0.464),
-        'right_shoulder': (86.089, 12.95, -2.209), 'right_elbow': (32.088, 8.94),
-        'right_wrist': (-2.485, -27.342),
+        'right_clavicle': (4.198, -3.671), 'right_shoulder': (88.294, 6.244, -2.226),
+        'right_elbow': (36.954, 7.525), 'right_wrist': (-3.219, -29.895),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.703, 1.218, 1.89), 'spine_thoracic': (-3.153, -2.034, 1.84),
-        'neck': (-0.231, -0.617, -26.512), 'head': (-0.368, -0.001),
-        'right_clavicle': (3.118, 0.863), 'right_shoulder': (89.909, 11.646, -0.436),
-        'right_elbow': (32.615, 10.209), 'right_wrist': (-1.809, -28.033),
+        'head': (-0.721, -0.002), 'right_clavicle': (6.112, -3.443),
+        'right_shoulder': (87.316, 9.519, 0.109), 'right_elbow': (36.376, 10.337),
+        'right_wrist': (-2.228, -27.115),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (11.836, 1.729, 1.237), 'spine_thoracic': (-8.135, -7.91, 1.485),
-        'neck': (0.658, -0.329, -29.128), 'head': (0.568, 0.0), 'right_clavicle': (12.68, -1.606),
-        'right_shoulder': (79.92, 20.666, 4.253), 'right_elbow': (36.243, 16.235),
-        'right_wrist': (-1.166, -15.882),
+        'right_clavicle': (24.488, 3.191), 'right_shoulder': (76.682, 32.407, 6.59),
+        'right_elbow': (33.731, 20.872), 'right_wrist': (-1.049, -4.419),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (16.598, 3.166, 0.678), 'spine_thoracic': (-10.197, -10.0, 1.55),
-        'neck': (-0.591, -0.831, -30.537), 'head': (-0.787, -0.005),
-        'right_clavicle': (21.532, -3.597), 'right_shoulder': (76.346, 28.421, 8.616),
-        'right_elbow': (39.778, 21.95), 'right_wrist': (-0.89, -5.441),
+        'right_clavicle': (27.673, 0.955), 'right_shoulder': (72.627, 31.101, 5.799),
+        'right_elbow': (36.958, 19.908), 'right_wrist': (-1.986, -4.271),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (9.749, 0.195, 1.844), 'spine_thoracic': (-10.984, -7.633, 2.007),
-        'neck': (2.979, 0.547, -29.453), 'head': (3.062, 0.002), 'right_clavicle': (15.72, -2.694),
-        'right_shoulder': (70.956, 22.43, 4.663), 'right_elbow': (37.126, 16.923),
-        'right_wrist': (-1.672, -11.169),
+        'right_clavicle': (17.591, -9.762), 'right_shoulder': (76.092, 6.431, -1.212),
+        'right_elbow': (45.989, 8.09), 'right_wrist': (-5.051, -26.843),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (5.601, -0.032, 4.448), 'spine_thoracic': (-9.773, -2.442, 3.725),
-        'neck': (3.271, 0.645, -30.084), 'head': (3.371, 0.002), 'right_clavicle': (6.061, -0.141),
-        'right_shoulder': (79.241, 14.857, -4.084), 'right_elbow': (31.527, 7.641),
-        'right_wrist': (-3.431, -25.68),
+        'right_clavicle': (8.837, -4.579), 'right_shoulder': (84.8, 5.568, -4.424),
+        'right_elbow': (39.432, 5.341), 'right_wrist': (-4.928, -29.903),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'right_clavicle': (1.098, -3.424), 'right_shoulder': (90.455, 6.396, -0.551),
+        'right_elbow': (35.615, 9.011), 'right_wrist': (-2.047, -29.947),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (8.711, 1.134, 1.784), 'spine_thoracic': (-6.377, -5.054, 1.79),
-        'neck': (0.845, -0.236, -28.029), 'head': (0.778, 0.0), 'right_clavicle': (7.535, -0.254),
-        'right_shoulder': (83.752, 15.933, 1.179), 'right_elbow': (33.885, 12.543),
-        'right_wrist': (-1.717, -22.732),
+        'right_clavicle': (17.303, -0.328), 'right_shoulder': (80.83, 22.865, 4.602),
+        'right_elbow': (35.373, 17.198), 'right_wrist': (-1.069, -14.147),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (15.595, 3.032, 0.525), 'spine_thoracic': (-9.438, -9.975, 1.265),
-        'neck': (-0.418, -0.754, -29.948), 'head': (-0.595, -0.004),
-        'right_clavicle': (19.142, -3.109), 'right_shoulder': (77.738, 26.357, 7.935),
-        'right_elbow': (39.149, 20.796), 'right_wrist': (-0.818, -7.964),
+        'right_clavicle': (27.943, 4.304), 'right_shoulder': (73.805, 34.891, 5.928),
+        'right_elbow': (33.712, 20.803), 'right_wrist': (-1.518, -1.707),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (15.443, 2.713, 0.856), 'spine_thoracic': (-10.554, -9.947, 1.654),
-        'neck': (0.234, -0.51, -30.147), 'head': (0.103, -0.001),
-        'right_clavicle': (21.214, -3.609), 'right_shoulder': (74.414, 27.896, 8.32),
-        'right_elbow': (39.692, 21.53), 'right_wrist': (-1.04, -5.305),
+        'right_clavicle': (22.472, -7.843), 'right_shoulder': (73.068, 15.703, 3.021),
+        'right_elbow': (44.536, 14.047), 'right_wrist': (-3.462, -17.746),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (4.913, -1.045, 4.309), 'spine_thoracic': (-11.627, -3.551, 3.559),
-        'neck': (4.687, 1.177, -30.45), 'head': (4.888, 0.005), 'right_clavicle': (8.312, -1.02),
-        'right_shoulder': (73.287, 16.383, -3.026), 'right_elbow': (32.162, 8.854),
-        'right_wrist': (-3.368, -22.393),
+        'right_clavicle': (12.374, -6.704), 'right_shoulder': (81.509, 4.044, -4.845),
+        'right_elbow': (42.386, 4.563), 'right_wrist': (-5.873, -30.0),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.501, 0.996, 2.419), 'spine_thoracic': (-4.091, -1.823, 2.225),
-        'neck': (0.255, -0.445, -27.171), 'head': (0.15, -0.001), 'right_clavicle': (3.392, 0.706),
-        'right_shoulder': (88.644, 12.002, -1.341), 'right_elbow': (32.33, 9.519),
-        'right_wrist': (-2.078, -27.986),
+        'right_clavicle': (2.586, -3.524), 'right_shoulder': (89.421, 6.314, -1.398),
+        'right_elbow': (36.258, 8.259), 'right_wrist': (-2.627, -29.942),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (6.919, 1.186, 2.063), 'spine_thoracic': (-4.312, -2.646, 1.993),
-        'neck': (0.285, -0.429, -26.964), 'head': (0.183, 0.0), 'right_clavicle': (3.993, 0.708),
-        'right_shoulder': (88.024, 12.589, -0.459), 'right_elbow': (32.693, 10.373),
-        'right_wrist': (-2.004, -27.115),
+        'right_clavicle': (8.418, -3.114), 'right_shoulder': (85.969, 12.001, 1.216),
+        'right_elbow': (36.326, 11.852), 'right_wrist': (-1.859, -24.812),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (12.92, 2.063, 1.056), 'spine_thoracic': (-8.6, -8.671, 1.417),
-        'neck': (0.452, -0.413, -29.395), 'head': (0.345, -0.001),
-        'right_clavicle': (14.487, -2.039), 'right_shoulder': (79.017, 22.297, 5.293),
-        'right_elbow': (37.079, 17.514), 'right_wrist': (-1.04, -13.559),
+        'right_clavicle': (26.339, 3.909), 'right_shoulder': (75.241, 34.004, 6.39),
+        'right_elbow': (33.612, 20.921), 'right_wrist': (-1.248, -2.725),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (16.644, 3.167, 0.697), 'spine_thoracic': (-10.25, -10.0, 1.577),
-        'neck': (-0.59, -0.831, -30.586), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.661, -3.622), 'right_shoulder': (76.24, 28.533, 8.636),
-        'right_elbow': (39.802, 21.999), 'right_wrist': (-0.898, -5.311),
+        'right_clavicle': (26.844, -1.276), 'right_shoulder': (72.445, 28.002, 5.534),
+        'right_elbow': (38.947, 19.022), 'right_wrist': (-2.252, -6.744),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (7.779, -0.63, 2.482), 'spine_thoracic': (-11.228, -6.446, 2.356),
-        'neck': (3.837, 0.87, -29.615), 'head': (3.981, 0.003), 'right_clavicle': (13.409, -2.264),
-        'right_shoulder': (70.572, 20.346, 2.546), 'right_elbow': (35.636, 14.588),
-        'right_wrist': (-2.087, -14.376),
+        'right_clavicle': (16.13, -9.277), 'right_shoulder': (77.471, 4.819, -2.599),
+        'right_elbow': (45.443, 6.516), 'right_wrist': (-5.509, -28.551),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (5.944, 0.238, 4.124), 'spine_thoracic': (-8.694, -2.316, 3.5),
-        'neck': (2.621, 0.407, -29.637), 'head': (2.676, 0.001), 'right_clavicle': (5.532, 0.048),
-        'right_shoulder': (81.325, 14.365, -3.72), 'right_elbow': (31.635, 7.887),
-        'right_wrist': (-3.202, -26.218),
+        'right_clavicle': (7.513, -4.178), 'right_shoulder': (85.852, 5.932, -3.795),
+        'right_elbow': (38.609, 6.028), 'right_wrist': (-4.423, -29.849),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.274, -1.6, 1.711),
-        'neck': (-0.635, -0.764, -26.159), 'head': (-0.798, -0.002), 'right_clavicle': (2.5, 0.963),
-        'right_shoulder': (91.319, 10.967, -0.401), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.642, -28.665),
+        'right_clavicle': (2.043, -3.467), 'right_shoulder': (89.843, 6.799, -0.539),
+        'right_elbow': (35.857, 9.096), 'right_wrist': (-2.172, -29.582),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (9.655, 1.237, 1.595), 'spine_thoracic': (-6.969, -6.02, 1.665),
-        'neck': (0.852, -0.241, -28.401), 'head': (0.783, 0.0), 'right_clavicle': (9.102, -0.689),
-        'right_shoulder': (82.402, 17.376, 2.145), 'right_elbow': (34.587, 13.685),
-        'right_wrist': (-1.512, -20.641),
+        'right_clavicle': (20.116, 0.98), 'right_shoulder': (79.227, 26.633, 5.473),
+        'right_elbow': (34.797, 18.743), 'right_wrist': (-0.999, -10.322),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (16.112, 3.126, 0.534), 'spine_thoracic': (-9.717, -10.0, 1.316),
-        'neck': (-0.56, -0.812, -30.13), 'head': (-0.75, -0.004),
-        'right_clavicle': (20.266, -3.347), 'right_shoulder': (77.294, 27.324, 8.333),
-        'right_elbow': (39.495, 21.409), 'right_wrist': (-0.826, -6.746),
+        'right_clavicle': (28.077, 3.924), 'right_shoulder': (73.424, 34.496, 5.881),
+        'right_elbow': (34.184, 20.632), 'right_wrist': (-1.627, -1.915),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (13.919, 2.095, 1.002), 'spine_thoracic': (-10.66, -9.583, 1.66),
-        'neck': (1.022, -0.204, -29.789), 'head': (0.955, 0.0), 'right_clavicle': (19.961, -3.425),
-        'right_shoulder': (73.157, 26.564, 7.685), 'right_elbow': (39.288, 20.606),
-        'right_wrist': (-1.159, -6.307),
+        'right_clavicle': (20.81, -9.077), 'right_shoulder': (73.822, 11.931, 1.717),
+        'right_elbow': (45.525, 11.993), 'right_wrist': (-3.979, -21.357),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (4.97, -0.714, 4.613), 'spine_thoracic': (-11.293, -2.987, 3.805),
-        'neck': (4.364, 1.051, -30.573), 'head': (4.54, 0.004), 'right_clavicle': (7.347, -0.67),
-        'right_shoulder': (75.108, 15.771, -4.007), 'right_elbow': (31.652, 7.875),
-        'right_wrist': (-3.571, -23.922),
+        'right_clavicle': (11.233, -5.81), 'right_shoulder': (82.68, 4.555, -4.956),
+        'right_elbow': (41.273, 4.623), 'right_wrist': (-5.648, -30.0),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.563, 1.183, 1.902), 'spine_thoracic': (-2.702, -1.651, 1.832),
-        'neck': (-0.426, -0.689, -26.399), 'head': (-0.576, -0.002),
-        'right_clavicle': (2.709, 0.903), 'right_shoulder': (90.693, 11.21, -0.624),
-        'right_elbow': (32.526, 9.995), 'right_wrist': (-1.745, -28.507),
+        'right_clavicle': (1.338, -3.438), 'right_shoulder': (90.284, 6.337, -0.75),
+        'right_elbow': (35.736, 8.828), 'right_wrist': (-2.167, -29.986),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (7.3, 1.147, 2.119), 'spine_thoracic': (-5.263, -3.399, 2.044),
-        'neck': (0.669, -0.291, -27.399), 'head': (0.593, 0.0), 'right_clavicle': (5.073, 0.466),
-        'right_shoulder': (86.274, 13.674, -0.406), 'right_elbow': (32.876, 10.741),
-        'right_wrist': (-2.07, -25.89),
+        'right_clavicle': (11.18, -2.483), 'right_shoulder': (84.364, 15.198, 2.398),
+        'right_elbow': (36.144, 13.6), 'right_wrist': (-1.505, -21.75),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (13.957, 2.422, 0.855), 'spine_thoracic': (-8.954, -9.285, 1.344),
-        'neck': (0.178, -0.52, -29.57), 'head': (0.048, -0.001), 'right_clavicle': (16.241, -2.448),
-        'right_shoulder': (78.39, 23.847, 6.316), 'right_elbow': (37.887, 18.771),
-        'right_wrist': (-0.935, -11.37),
+        'right_clavicle': (27.436, 4.287), 'right_shoulder': (74.297, 34.786, 6.153),
+        'right_elbow': (33.586, 20.93), 'right_wrist': (-1.414, -1.878),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (16.605, 3.14, 0.755), 'spine_thoracic': (-10.323, -10.0, 1.635),
-        'neck': (-0.531, -0.81, -30.662), 'head': (-0.724, -0.005),
-        'right_clavicle': (21.721, -3.634), 'right_shoulder': (76.039, 28.567, 8.587),
-        'right_elbow': (39.778, 21.973), 'right_wrist': (-0.918, -5.241),
+        'right_clavicle': (25.608, -3.676), 'right_shoulder': (72.395, 24.159, 4.978),
+        'right_elbow': (41.032, 17.704), 'right_wrist': (-2.585, -10.026),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (6.249, -1.108, 3.169), 'spine_thoracic': (-11.494, -5.319, 2.775),
-        'neck': (4.446, 1.096, -29.893), 'head': (4.632, 0.005), 'right_clavicle': (11.345, -1.834),
-        'right_shoulder': (70.891, 18.612, 0.379), 'right_elbow': (34.193, 12.306),
-        'right_wrist': (-2.561, -17.513),
+        'right_clavicle': (14.799, -8.594), 'right_shoulder': (78.853, 4.205, -3.72),
+        'right_elbow': (44.654, 5.398), 'right_wrist': (-5.766, -29.443),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (6.219, 0.488, 3.628), 'spine_thoracic': (-7.389, -2.205, 3.132),
-        'neck': (1.908, 0.15, -28.945), 'right_clavicle': (4.975, 0.23),
-        'right_shoulder': (83.524, 13.776, -3.005), 'right_elbow': (31.858, 8.398),
-        'right_wrist': (-2.869, -26.711),
+        'right_clavicle': (5.945, -3.891), 'right_shoulder': (87.041, 6.113, -3.091),
+        'right_elbow': (37.766, 6.733), 'right_wrist': (-3.858, -29.859),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'spine_lumbar': (6.604, 1.235, 1.775), 'spine_thoracic': (-2.466, -1.694, 1.74),
-        'neck': (-0.546, -0.732, -26.238), 'head': (-0.704, -0.002),
-        'right_clavicle': (2.634, 0.942), 'right_shoulder': (91.011, 11.115, -0.41),
-        'right_elbow': (32.592, 10.154), 'right_wrist': (-1.679, -28.529),
+        'right_clavicle': (3.997, -3.52), 'right_shoulder': (88.593, 7.785, -0.45),
+        'right_elbow': (36.293, 9.416), 'right_wrist': (-2.355, -28.687),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (10.723, 1.448, 1.415), 'spine_thoracic': (-7.57, -6.996, 1.564),
-        'neck': (0.788, -0.273, -28.777), 'head': (0.711, 0.0), 'right_clavicle': (10.841, -1.147),
-        'right_shoulder': (81.101, 18.984, 3.183), 'right_elbow': (35.394, 14.932),
-        'right_wrist': (-1.324, -18.305),
+        'right_clavicle': (22.529, 2.206), 'right_shoulder': (77.848, 29.9, 6.151),
+        'right_elbow': (34.208, 19.993), 'right_wrist': (-0.998, -6.98),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (16.435, 3.159, 0.616), 'spine_thoracic': (-10.017, -10.0, 1.458),
-        'neck': (-0.591, -0.828, -30.377), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.087, -3.51), 'right_shoulder': (76.706, 28.035, 8.533),
-        'right_elbow': (39.688, 21.773), 'right_wrist': (-0.863, -5.895),
+        'right_clavicle': (28.116, 2.798), 'right_shoulder': (73.004, 33.344, 5.887),
+        'right_elbow': (35.264, 20.432), 'right_wrist': (-1.777, -2.629),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (11.926, 1.187, 1.33), 'spine_thoracic': (-10.795, -8.75, 1.769),
-        'neck': (1.982, 0.166, -29.516), 'head': (1.991, 0.001), 'right_clavicle': (18.044, -3.103),
-        'right_shoulder': (71.907, 24.643, 6.46), 'right_elbow': (38.421, 19.036),
-        'right_wrist': (-1.359, -8.319),
+        'right_clavicle': (19.174, -9.699), 'right_shoulder': (74.855, 8.747, 0.26),
+        'right_elbow': (45.973, 9.943), 'right_wrist': (-4.531, -24.476),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (5.171, -0.367, 4.614), 'spine_thoracic': (-10.707, -2.653, 3.816),
-        'neck': (3.922, 0.887, -30.349), 'head': (4.068, 0.003), 'right_clavicle': (6.635, -0.382),
-        'right_shoulder': (77.097, 15.289, -4.123), 'right_elbow': (31.548, 7.677),
-        'right_wrist': (-3.565, -24.946),
+        'right_clavicle': (10.045, -5.128), 'right_shoulder': (83.786, 5.042, -4.902),
+        'right_elbow': (40.29, 4.782), 'right_wrist': (-5.361, -29.985),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'right_clavicle': (0.956, -3.416), 'right_shoulder': (90.548, 6.338, -0.551),
+        'right_elbow': (35.579, 9.002), 'right_wrist': (-2.026, -30.0),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (7.91, 1.113, 1.966), 'spine_thoracic': (-5.797, -4.148, 1.925),
-        'neck': (0.778, -0.255, -27.683), 'head': (0.708, 0.0), 'right_clavicle': (6.159, 0.142),
-        'right_shoulder': (85.087, 14.669, 0.328), 'right_elbow': (33.307, 11.545),
-        'right_wrist': (-1.913, -24.528),
+        'right_clavicle': (14.196, -1.483), 'right_shoulder': (82.619, 18.939, 3.526),
+        'right_elbow': (35.808, 15.408), 'right_wrist': (-1.239, -18.069),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (14.856, 2.755, 0.679), 'spine_thoracic': (-9.227, -9.707, 1.29),
-        'neck': (-0.106, -0.63, -29.673), 'head': (-0.26, -0.002),
-        'right_clavicle': (17.808, -2.807), 'right_shoulder': (77.997, 25.214, 7.196),
-        'right_elbow': (38.582, 19.87), 'right_wrist': (-0.864, -9.491),
+        'right_clavicle': (27.721, 4.382), 'right_shoulder': (74.049, 34.978, 6.082),
+        'right_elbow': (33.585, 20.93), 'right_wrist': (-1.458, -1.669),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.312, 3.018, 0.806), 'spine_thoracic': (-10.445, -10.0, 1.659),
-        'neck': (-0.31, -0.726, -30.618), 'head': (-0.484, -0.004),
-        'right_clavicle': (21.672, -3.641), 'right_shoulder': (75.419, 28.482, 8.508),
-        'right_elbow': (39.762, 21.866), 'right_wrist': (-0.967, -5.16),
+        'right_clavicle': (24.108, -5.967), 'right_shoulder': (72.617, 19.918, 4.126),
+        'right_elbow': (42.977, 16.004), 'right_wrist': (-2.988, -13.833),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (5.306, -1.173, 3.809), 'spine_thoracic': (-11.608, -4.341, 3.199),
-        'neck': (4.697, 1.186, -30.183), 'head': (4.9, 0.005), 'right_clavicle': (9.649, -1.416),
-        'right_shoulder': (71.776, 17.315, -1.543), 'right_elbow': (33.008, 10.345),
-        'right_wrist': (-3.016, -20.226),
+        'right_clavicle': (13.576, -7.639), 'right_shoulder': (80.226, 3.917, -4.588),
+        'right_elbow': (43.517, 4.619), 'right_wrist': (-5.919, -29.957),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.387, 0.75, 3.058), 'spine_thoracic': (-5.817, -2.031, 2.707),
-        'neck': (1.109, -0.138, -28.112), 'head': (1.061, 0.0), 'right_clavicle': (4.233, 0.459),
-        'right_shoulder': (86.045, 12.966, -2.223), 'right_elbow': (32.084, 8.931),
-        'right_wrist': (-2.492, -27.331),
+        'right_clavicle': (4.226, -3.674), 'right_shoulder': (88.273, 6.243, -2.241),
+        'right_elbow': (36.967, 7.512), 'right_wrist': (-3.23, -29.894),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.701, 1.218, 1.888), 'spine_thoracic': (-3.137, -2.026, 1.838),
-        'neck': (-0.239, -0.62, -26.506), 'head': (-0.375, -0.001),
-        'right_clavicle': (3.106, 0.865), 'right_shoulder': (89.935, 11.633, -0.435),
-        'right_elbow': (32.614, 10.208), 'right_wrist': (-1.806, -28.045),
+        'right_clavicle': (6.08, -3.447), 'right_shoulder': (87.335, 9.484, 0.09),
+        'right_elbow': (36.376, 10.314), 'right_wrist': (-2.235, -27.147),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (11.817, 1.724, 1.24), 'spine_thoracic': (-8.126, -7.896, 1.486),
-        'neck': (0.661, -0.328, -29.123), 'head': (0.572, 0.0), 'right_clavicle': (12.649, -1.598),
-        'right_shoulder': (79.938, 20.638, 4.235), 'right_elbow': (36.229, 16.214),
-        'right_wrist': (-1.168, -15.922),
+        'right_clavicle': (24.455, 3.176), 'right_shoulder': (76.704, 32.372, 6.59),
+        'right_elbow': (33.735, 20.87), 'right_wrist': (-1.047, -4.455),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (16.597, 3.166, 0.677), 'spine_thoracic': (-10.195, -10.0, 1.549),
-        'neck': (-0.591, -0.831, -30.535), 'head': (-0.787, -0.005),
-        'right_clavicle': (21.528, -3.596), 'right_shoulder': (76.349, 28.417, 8.615),
-        'right_elbow': (39.777, 21.949), 'right_wrist': (-0.89, -5.446),
+        'right_clavicle': (27.684, 0.99), 'right_shoulder': (72.632, 31.146, 5.802),
+        'right_elbow': (36.926, 19.92), 'right_wrist': (-1.982, -4.237),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (9.783, 0.21, 1.835), 'spine_thoracic': (-10.98, -7.652, 2.003),
-        'neck': (2.964, 0.541, -29.453), 'head': (3.046, 0.002), 'right_clavicle': (15.759, -2.701),
-        'right_shoulder': (70.964, 22.466, 4.695), 'right_elbow': (37.149, 16.96),
-        'right_wrist': (-1.666, -11.119),
+        'right_clavicle': (17.617, -9.767), 'right_shoulder': (76.07, 6.464, -1.188),
+        'right_elbow': (45.995, 8.119), 'right_wrist': (-5.043, -26.809),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (5.595, -0.038, 4.451), 'spine_thoracic': (-9.79, -2.445, 3.727),
-        'neck': (3.282, 0.649, -30.089), 'head': (3.383, 0.002), 'right_clavicle': (6.07, -0.144),
-        'right_shoulder': (79.205, 14.865, -4.085), 'right_elbow': (31.528, 7.641),
-        'right_wrist': (-3.433, -25.669),
+        'right_clavicle': (8.858, -4.587), 'right_shoulder': (84.783, 5.56, -4.434),
+        'right_elbow': (39.446, 5.33), 'right_wrist': (-4.936, -29.904),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'right_clavicle': (1.091, -3.423), 'right_shoulder': (90.46, 6.393, -0.551),
+        'right_elbow': (35.613, 9.011), 'right_wrist': (-2.046, -29.95),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (8.696, 1.134, 1.788), 'spine_thoracic': (-6.367, -5.039, 1.793),
-        'neck': (0.844, -0.237, -28.022), 'head': (0.778, 0.0), 'right_clavicle': (7.51, -0.247),
-        'right_shoulder': (83.775, 15.91, 1.163), 'right_elbow': (33.874, 12.525),
-        'right_wrist': (-1.72, -22.765),
+        'right_clavicle': (17.253, -0.35), 'right_shoulder': (80.859, 22.799, 4.586),
+        'right_elbow': (35.382, 17.17), 'right_wrist': (-1.071, -14.214),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (15.584, 3.029, 0.526), 'spine_thoracic': (-9.435, -9.973, 1.265),
-        'neck': (-0.414, -0.753, -29.947), 'head': (-0.591, -0.004),
-        'right_clavicle': (19.122, -3.105), 'right_shoulder': (77.743, 26.339, 7.925),
-        'right_elbow': (39.141, 20.783), 'right_wrist': (-0.818, -7.986),
+        'right_clavicle': (27.939, 4.307), 'right_shoulder': (73.811, 34.895, 5.931),
+        'right_elbow': (33.706, 20.806), 'right_wrist': (-1.516, -1.706),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (15.464, 2.721, 0.854), 'spine_thoracic': (-10.552, -9.95, 1.654),
-        'neck': (0.222, -0.514, -30.153), 'head': (0.091, -0.001),
-        'right_clavicle': (21.23, -3.611), 'right_shoulder': (74.434, 27.913, 8.327),
-        'right_elbow': (39.696, 21.541), 'right_wrist': (-1.038, -5.294),
+        'right_clavicle': (22.5, -7.814), 'right_shoulder': (73.057, 15.772, 3.042),
+        'right_elbow': (44.513, 14.081), 'right_wrist': (-3.454, -17.681),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (4.913, -1.048, 4.303), 'spine_thoracic': (-11.629, -3.562, 3.555),
-        'neck': (4.691, 1.178, -30.446), 'head': (4.892, 0.005), 'right_clavicle': (8.331, -1.026),
-        'right_shoulder': (73.26, 16.396, -3.007), 'right_elbow': (32.172, 8.873),
-        'right_wrist': (-3.364, -22.363),
+        'right_clavicle': (12.393, -6.719), 'right_shoulder': (81.489, 4.037, -4.842),
+        'right_elbow': (42.405, 4.562), 'right_wrist': (-5.876, -30.0),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.5, 0.993, 2.429), 'spine_thoracic': (-4.118, -1.826, 2.232),
-        'neck': (0.269, -0.44, -27.186), 'head': (0.165, -0.001), 'right_clavicle': (3.405, 0.702),
-        'right_shoulder': (88.603, 12.018, -1.355), 'right_elbow': (32.326, 9.51),
-        'right_wrist': (-2.084, -27.976),
+        'right_clavicle': (2.611, -3.526), 'right_shoulder': (89.403, 6.314, -1.411),
+        'right_elbow': (36.268, 8.248), 'right_wrist': (-2.636, -29.941),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (6.914, 1.187, 2.06), 'spine_thoracic': (-4.291, -2.634, 1.99),
-        'neck': (0.275, -0.433, -26.956), 'head': (0.174, 0.0), 'right_clavicle': (3.975, 0.711),
-        'right_shoulder': (88.059, 12.571, -0.459), 'right_elbow': (32.691, 10.369),
-        'right_wrist': (-2.001, -27.134),
+        'right_clavicle': (8.375, -3.122), 'right_shoulder': (85.994, 11.953, 1.196),
+        'right_elbow': (36.328, 11.824), 'right_wrist': (-1.866, -24.858),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (12.902, 2.057, 1.059), 'spine_thoracic': (-8.593, -8.66, 1.418),
-        'neck': (0.456, -0.411, -29.391), 'head': (0.349, -0.001),
-        'right_clavicle': (14.457, -2.032), 'right_shoulder': (79.03, 22.27, 5.276),
-        'right_elbow': (37.065, 17.493), 'right_wrist': (-1.042, -13.597),
+        'right_clavicle': (26.313, 3.9), 'right_shoulder': (75.263, 33.984, 6.395),
+        'right_elbow': (33.613, 20.921), 'right_wrist': (-1.244, -2.746),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (16.643, 3.167, 0.697), 'spine_thoracic': (-10.249, -10.0, 1.577),
-        'neck': (-0.59, -0.831, -30.585), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.66, -3.621), 'right_shoulder': (76.24, 28.532, 8.636),
-        'right_elbow': (39.801, 21.999), 'right_wrist': (-0.898, -5.312),
+        'right_clavicle': (26.863, -1.235), 'right_shoulder': (72.447, 28.063, 5.541),
+        'right_elbow': (38.911, 19.042), 'right_wrist': (-2.247, -6.693),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (7.809, -0.62, 2.47), 'spine_thoracic': (-11.224, -6.466, 2.35),
-        'neck': (3.825, 0.865, -29.611), 'head': (3.968, 0.003), 'right_clavicle': (13.446, -2.271),
-        'right_shoulder': (70.575, 20.378, 2.582), 'right_elbow': (35.661, 14.627),
-        'right_wrist': (-2.08, -14.322),
+        'right_clavicle': (16.154, -9.287), 'right_shoulder': (77.448, 4.838, -2.577),
+        'right_elbow': (45.454, 6.539), 'right_wrist': (-5.503, -28.529),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (5.939, 0.234, 4.131), 'spine_thoracic': (-8.714, -2.318, 3.506),
-        'neck': (2.633, 0.411, -29.647), 'head': (2.689, 0.001), 'right_clavicle': (5.541, 0.045),
-        'right_shoulder': (81.29, 14.373, -3.731), 'right_elbow': (31.632, 7.879),
-        'right_wrist': (-3.207, -26.21),
+        'right_clavicle': (7.537, -4.183), 'right_shoulder': (85.833, 5.928, -3.805),
+        'right_elbow': (38.623, 6.017), 'right_wrist': (-4.431, -29.849),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
-        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.274, -1.6, 1.711),
-        'neck': (-0.635, -0.764, -26.159), 'head': (-0.799, -0.002),
-        'right_clavicle': (2.499, 0.963), 'right_shoulder': (91.32, 10.966, -0.401),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.642, -28.666),
+        'right_clavicle': (2.018, -3.466), 'right_shoulder': (89.86, 6.788, -0.54),
+        'right_elbow': (35.851, 9.094), 'right_wrist': (-2.169, -29.592),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (9.638, 1.234, 1.599), 'spine_thoracic': (-6.959, -6.004, 1.667),
-        'neck': (0.853, -0.241, -28.395), 'head': (0.784, 0.0), 'right_clavicle': (9.074, -0.682),
-        'right_shoulder': (82.425, 17.35, 2.128), 'right_elbow': (34.574, 13.664),
-        'right_wrist': (-1.515, -20.679),
+        'right_clavicle': (20.071, 0.958), 'right_shoulder': (79.252, 26.573, 5.459),
+        'right_elbow': (34.807, 18.719), 'right_wrist': (-0.999, -10.384),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (16.105, 3.125, 0.533), 'spine_thoracic': (-9.711, -10.0, 1.313),
-        'neck': (-0.559, -0.811, -30.126), 'head': (-0.749, -0.004),
-        'right_clavicle': (20.25, -3.343), 'right_shoulder': (77.305, 27.31, 8.328),
-        'right_elbow': (39.491, 21.401), 'right_wrist': (-0.825, -6.764),
+        'right_clavicle': (28.076, 3.938), 'right_shoulder': (73.431, 34.509, 5.881),
+        'right_elbow': (34.17, 20.634), 'right_wrist': (-1.625, -1.907),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (13.95, 2.109, 0.998), 'spine_thoracic': (-10.658, -9.594, 1.659),
-        'neck': (1.006, -0.21, -29.794), 'head': (0.939, 0.0), 'right_clavicle': (19.988, -3.429),
-        'right_shoulder': (73.179, 26.593, 7.701), 'right_elbow': (39.299, 20.628),
-        'right_wrist': (-1.157, -6.28),
+        'right_clavicle': (20.837, -9.065), 'right_shoulder': (73.808, 11.988, 1.74),
+        'right_elbow': (45.516, 12.027), 'right_wrist': (-3.97, -21.302),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (4.969, -0.72, 4.61), 'spine_thoracic': (-11.301, -2.995, 3.802),
-        'neck': (4.37, 1.053, -30.574), 'head': (4.547, 0.004), 'right_clavicle': (7.361, -0.676),
-        'right_shoulder': (75.076, 15.78, -3.997), 'right_elbow': (31.658, 7.886),
-        'right_wrist': (-3.569, -23.901),
+        'right_clavicle': (11.253, -5.824), 'right_shoulder': (82.66, 4.546, -4.955),
+        'right_elbow': (41.291, 4.622), 'right_wrist': (-5.653, -30.0),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.562, 1.181, 1.908), 'spine_thoracic': (-2.72, -1.653, 1.838),
-        'neck': (-0.417, -0.686, -26.41), 'head': (-0.566, -0.002), 'right_clavicle': (2.718, 0.9),
-        'right_shoulder': (90.666, 11.221, -0.634), 'right_elbow': (32.524, 9.989),
-        'right_wrist': (-1.749, -28.501),
+        'right_clavicle': (1.354, -3.439), 'right_shoulder': (90.273, 6.337, -0.758),
+        'right_elbow': (35.743, 8.821), 'right_wrist': (-2.173, -29.985),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (7.292, 1.148, 2.12), 'spine_thoracic': (-5.252, -3.387, 2.045),
-        'neck': (0.665, -0.293, -27.394), 'head': (0.59, 0.0), 'right_clavicle': (5.055, 0.471),
-        'right_shoulder': (86.297, 13.657, -0.412), 'right_elbow': (32.871, 10.731),
-        'right_wrist': (-2.071, -25.912),
+        'right_clavicle': (11.131, -2.498), 'right_shoulder': (84.393, 15.138, 2.379),
+        'right_elbow': (36.148, 13.569), 'right_wrist': (-1.511, -21.808),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (13.94, 2.416, 0.858), 'spine_thoracic': (-8.948, -9.276, 1.345),
-        'neck': (0.183, -0.518, -29.568), 'head': (0.053, -0.001),
-        'right_clavicle': (16.213, -2.442), 'right_shoulder': (78.399, 23.822, 6.3),
-        'right_elbow': (37.874, 18.751), 'right_wrist': (-0.936, -11.405),
+        'right_clavicle': (27.426, 4.283), 'right_shoulder': (74.306, 34.779, 6.156),
+        'right_elbow': (33.586, 20.93), 'right_wrist': (-1.412, -1.886),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (16.608, 3.141, 0.753), 'spine_thoracic': (-10.32, -10.0, 1.633),
-        'neck': (-0.534, -0.811, -30.66), 'head': (-0.726, -0.005),
-        'right_clavicle': (21.72, -3.633), 'right_shoulder': (76.047, 28.566, 8.589),
-        'right_elbow': (39.778, 21.974), 'right_wrist': (-0.918, -5.243),
+        'right_clavicle': (25.631, -3.637), 'right_shoulder': (72.394, 24.227, 4.989),
+        'right_elbow': (40.998, 17.729), 'right_wrist': (-2.579, -9.966),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (6.27, -1.103, 3.157), 'spine_thoracic': (-11.49, -5.337, 2.767),
-        'neck': (4.438, 1.093, -29.887), 'head': (4.624, 0.005), 'right_clavicle': (11.377, -1.841),
-        'right_shoulder': (70.88, 18.639, 0.415), 'right_elbow': (34.216, 12.343),
-        'right_wrist': (-2.553, -17.462),
+        'right_clavicle': (14.821, -8.609), 'right_shoulder': (78.83, 4.212, -3.702),
+        'right_elbow': (44.671, 5.415), 'right_wrist': (-5.762, -29.431),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (6.215, 0.484, 3.637), 'spine_thoracic': (-7.413, -2.207, 3.139),
-        'neck': (1.92, 0.154, -28.958), 'right_clavicle': (4.985, 0.226),
-        'right_shoulder': (83.485, 13.787, -3.017), 'right_elbow': (31.855, 8.389),
-        'right_wrist': (-2.875, -26.701),
+        'right_clavicle': (5.973, -3.896), 'right_shoulder': (87.021, 6.11, -3.105),
+        'right_elbow': (37.78, 6.72), 'right_wrist': (-3.868, -29.859),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
-        'spine_lumbar': (6.602, 1.236, 1.773), 'spine_thoracic': (-2.457, -1.69, 1.738),
-        'neck': (-0.55, -0.733, -26.234), 'head': (-0.708, -0.002),
-        'right_clavicle': (2.628, 0.943), 'right_shoulder': (91.026, 11.108, -0.409),
-        'right_elbow': (32.592, 10.154), 'right_wrist': (-1.678, -28.535),
+        'right_clavicle': (3.181, -3.504), 'right_shoulder': (89.111, 7.339, -0.499),
+        'right_elbow': (36.134, 9.256), 'right_wrist': (-2.294, -29.092),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (10.688, 1.441, 1.421), 'spine_thoracic': (-7.551, -6.966, 1.567),
-        'neck': (0.791, -0.272, -28.765), 'head': (0.714, 0.0), 'right_clavicle': (10.783, -1.132),
-        'right_shoulder': (81.142, 18.931, 3.149), 'right_elbow': (35.367, 14.891),
-        'right_wrist': (-1.33, -18.382),
+        'right_clavicle': (20.618, 1.228), 'right_shoulder': (78.941, 27.313, 5.62),
+        'right_elbow': (34.681, 19.01), 'right_wrist': (-0.996, -9.629),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (16.426, 3.159, 0.612), 'spine_thoracic': (-10.007, -10.0, 1.453),
-        'neck': (-0.591, -0.827, -30.368), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.06, -3.505), 'right_shoulder': (76.727, 28.012, 8.527),
-        'right_elbow': (39.683, 21.762), 'right_wrist': (-0.862, -5.922),
+        'spine_lumbar': (10.024, 1.688, 1.154), 'spine_thoracic': (-4.846, -4.722, 1.472),
+        'neck': (-0.552, -0.759, -27.524), 'right_clavicle': (28.094, 4.012),
+        'right_shoulder': (73.463, 34.583, 5.882), 'right_elbow': (34.1, 20.654),
+        'right_wrist': (-1.614, -1.888),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (11.875, 1.12, 1.238), 'spine_thoracic': (-10.633, -8.778, 1.69),
-        'neck': (1.959, 0.158, -29.48), 'head': (1.966, 0.001), 'right_clavicle': (18.065, -3.148),
-        'right_shoulder': (72.034, 24.596, 6.552), 'right_elbow': (38.34, 19.117),
-        'right_wrist': (-1.312, -8.509),
+        'spine_lumbar': (7.86, 1.212, 1.279), 'spine_thoracic': (-3.128, -3.039, 1.421),
+        'neck': (-0.556, -0.743, -26.629), 'head': (-0.717, -0.002),
+        'right_clavicle': (21.024, -6.966), 'right_shoulder': (74.711, 13.144, 1.462),
+        'right_elbow': (43.726, 12.026), 'right_wrist': (-3.844, -22.266),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (4.753, -0.773, 4.34), 'spine_thoracic': (-10.182, -2.686, 3.56),
-        'neck': (3.966, 0.907, -30.216), 'head': (4.116, 0.003), 'right_clavicle': (6.516, -0.551),
-        'right_shoulder': (77.528, 14.959, -4.086), 'right_elbow': (30.968, 7.69),
-        'right_wrist': (-3.445, -26.171),
+        'spine_lumbar': (6.255, 0.894, 1.379), 'spine_thoracic': (-1.765, -1.685, 1.376),
+        'neck': (-0.631, -0.758, -25.905), 'right_clavicle': (11.763, -1.324),
+        'right_shoulder': (84.627, 8.996, -4.792), 'right_elbow': (37.116, 5.8),
+        'right_wrist': (-4.978, -29.999),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -1477,616 +1294,432 @@ def remove_access_panel():
         'right_wrist': (-6.199, -3.54),
     })
     human.KeyJoints(24.2, {
-        'right_shoulder': (18.714, 33.746, -16.635), 'right_elbow': (36.549, 2.884),
-        'right_wrist': (-6.352, -4.864),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'right_shoulder': (18.714, 33.746, -16.635),
+        'right_elbow': (36.549, 2.884), 'right_wrist': (-6.352, -4.864),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.139, -13.832, 9.593), 'spine_thoracic': (-8.437, -4.428, 9.159),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.726, 7.9),
-        'right_shoulder': (18.721, 33.775, -16.625), 'right_elbow': (36.573, 2.899),
-        'right_wrist': (-6.351, -4.806),
+        'spine_lumbar': (7.145, -13.81, 9.592), 'spine_thoracic': (-8.438, -4.43, 9.159),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.671, 7.935),
+        'right_shoulder': (18.734, 33.86, -16.638), 'right_elbow': (36.524, 2.901),
+        'right_wrist': (-6.344, -4.665),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (7.96, -11.614, 9.313), 'spine_thoracic': (-8.399, -5.53, 9.16),
-        'neck': (34.47, -2.8, -40.651), 'head': (14.568, -0.721), 'right_clavicle': (5.543, 7.663),
-        'right_shoulder': (18.645, 33.691, -13.063), 'right_elbow': (36.888, 5.979),
-        'right_wrist': (-6.023, -2.674),
+        'spine_lumbar': (7.835, -11.69, 9.748), 'spine_thoracic': (-8.571, -4.151, 9.296),
+        'neck': (34.537, -3.025, -41.514), 'head': (14.505, -0.736),
+        'right_clavicle': (5.261, 9.241), 'right_shoulder': (16.96, 39.323, -11.452),
+        'right_elbow': (34.325, 8.457), 'right_wrist': (-6.21, 2.72),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (13.377, -5.62, 8.695), 'spine_thoracic': (-7.125, -9.338, 9.661),
-        'neck': (33.066, -4.089, -42.004), 'head': (13.15, -1.029),
-        'right_clavicle': (16.291, 8.223), 'right_shoulder': (16.382, 41.4, -1.977),
-        'right_elbow': (41.513, 18.977), 'right_wrist': (-6.48, 10.38),
+        'spine_lumbar': (9.908, -5.658, 10.196), 'spine_thoracic': (-9.437, -3.747, 9.709),
+        'neck': (33.385, -3.808, -41.718), 'head': (13.462, -0.956),
+        'right_clavicle': (18.934, 12.501), 'right_shoulder': (13.316, 46.481, 2.372),
+        'right_elbow': (37.897, 25.2), 'right_wrist': (-9.153, 9.032),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'right_clavicle': (22.165, 9.571), 'right_shoulder': (13.489, 42.265, 4.857),
+        'right_elbow': (41.156, 26.207), 'right_wrist': (-8.888, 6.767),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (9.141, -1.244, 9.076), 'spine_thoracic': (-9.399, -4.687, 9.241),
-        'neck': (32.026, -3.666, -38.193), 'head': (12.618, -1.032),
-        'right_clavicle': (13.909, 6.78), 'right_shoulder': (19.302, 35.419, -2.031),
-        'right_elbow': (42.922, 15.628), 'right_wrist': (-5.059, 11.552),
+        'right_clavicle': (4.987, 6.492), 'right_shoulder': (21.392, 39.715, -8.588),
+        'right_elbow': (36.658, 7.975), 'right_wrist': (-3.862, 18.761),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (10.991, -0.083, 10.845), 'spine_thoracic': (-10.616, -2.048, 10.147),
-        'neck': (32.234, -4.449, -41.137), 'head': (12.354, -1.083),
-        'right_clavicle': (7.666, 7.909), 'right_shoulder': (21.889, 37.093, -10.738),
-        'right_elbow': (43.623, 8.107), 'right_wrist': (-5.481, 10.621),
+        'right_clavicle': (-1.333, 11.912), 'right_shoulder': (22.345, 45.501, -15.407),
+        'right_elbow': (33.538, 4.935), 'right_wrist': (-4.748, 19.426),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.376, -1.283, 10.78), 'spine_thoracic': (-10.026, -2.403, 10.058),
-        'neck': (32.378, -4.552, -41.829), 'head': (12.413, -1.092),
-        'right_clavicle': (6.264, 8.472), 'right_shoulder': (20.947, 38.773, -12.356),
-        'right_elbow': (44.282, 7.499), 'right_wrist': (-5.981, 11.234),
+        'right_clavicle': (-1.244, 12.306), 'right_shoulder': (21.237, 46.676, -15.25),
+        'right_elbow': (33.836, 6.002), 'right_wrist': (-5.134, 19.437),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (13.107, -2.417, 9.475), 'spine_thoracic': (-8.45, -7.417, 9.863),
-        'neck': (32.493, -4.339, -41.468), 'head': (12.622, -1.08),
-        'right_clavicle': (13.69, 8.139), 'right_shoulder': (18.401, 40.559, -4.684),
-        'right_elbow': (42.984, 15.653), 'right_wrist': (-6.137, 12.083),
+        'right_clavicle': (11.621, 12.534), 'right_shoulder': (15.101, 48.437, -3.208),
+        'right_elbow': (34.548, 18.962), 'right_wrist': (-7.615, 15.605),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.091, -8.006, 8.191), 'spine_thoracic': (-6.051, -10.0, 9.719),
-        'neck': (33.451, -4.134, -43.097), 'head': (13.423, -1.028),
-        'right_clavicle': (19.858, 8.503), 'right_shoulder': (14.688, 43.222, 1.468),
-        'right_elbow': (40.798, 23.297), 'right_wrist': (-6.81, 10.205),
+        'right_clavicle': (21.583, 12.384), 'right_shoulder': (13.404, 45.149, 4.409),
+        'right_elbow': (38.499, 26.824), 'right_wrist': (-9.079, 6.989),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (10.925, -5.39, 8.276), 'spine_thoracic': (-7.29, -8.194, 9.287),
-        'neck': (32.697, -3.691, -39.877), 'head': (13.087, -1.01), 'right_clavicle': (17.69, 7.66),
-        'right_shoulder': (16.132, 39.179, 1.301), 'right_elbow': (42.138, 20.92),
-        'right_wrist': (-5.978, 11.483),
+        'right_clavicle': (13.98, 5.242), 'right_shoulder': (16.401, 39.466, -1.026),
+        'right_elbow': (40.615, 16.948), 'right_wrist': (-6.279, 14.468),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (10.084, 1.185, 10.677), 'spine_thoracic': (-11.122, -1.822, 10.039),
-        'neck': (32.026, -4.19, -39.803), 'head': (12.329, -1.064),
-        'right_clavicle': (9.507, 7.102), 'right_shoulder': (22.573, 34.715, -8.112),
-        'right_elbow': (42.915, 9.344), 'right_wrist': (-4.828, 10.086),
+        'right_clavicle': (0.293, 10.288), 'right_shoulder': (23.321, 43.333, -13.319),
+        'right_elbow': (33.344, 4.907), 'right_wrist': (-3.711, 19.696),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-2.03, 12.366), 'right_shoulder': (21.487, 46.174, -16.469),
+        'right_elbow': (34.554, 5.1), 'right_wrist': (-5.427, 18.858),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (12.111, -0.954, 10.232), 'spine_thoracic': (-9.611, -4.619, 9.985),
-        'neck': (32.278, -4.436, -41.213), 'head': (12.397, -1.083), 'right_clavicle': (9.8, 8.186),
-        'right_shoulder': (20.247, 38.964, -8.542), 'right_elbow': (43.673, 11.131),
-        'right_wrist': (-5.835, 11.713),
+        'right_clavicle': (3.987, 12.569), 'right_shoulder': (18.071, 48.976, -9.591),
+        'right_elbow': (32.715, 12.061), 'right_wrist': (-5.977, 19.755),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (13.977, -6.166, 8.48), 'spine_thoracic': (-6.691, -9.838, 9.707),
-        'neck': (33.14, -4.179, -42.505), 'head': (13.176, -1.044),
-        'right_clavicle': (18.106, 8.403), 'right_shoulder': (15.643, 42.687, -0.279),
-        'right_elbow': (41.59, 21.198), 'right_wrist': (-6.672, 11.13),
+        'right_clavicle': (19.866, 12.48), 'right_shoulder': (13.333, 46.056, 3.09),
+        'right_elbow': (38.152, 25.821), 'right_wrist': (-9.142, 8.299),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (13.681, -8.209, 8.131), 'spine_thoracic': (-6.005, -10.0, 9.687),
-        'neck': (33.477, -4.039, -42.794), 'head': (13.465, -1.003),
-        'right_clavicle': (20.126, 8.428), 'right_shoulder': (14.592, 42.734, 2.105),
-        'right_elbow': (40.707, 23.661), 'right_wrist': (-6.718, 10.054),
+        'right_clavicle': (21.669, 8.754), 'right_shoulder': (13.612, 41.66, 4.517),
+        'right_elbow': (41.572, 25.459), 'right_wrist': (-8.709, 7.373),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (9.034, 0.488, 9.743), 'spine_thoracic': (-10.454, -2.936, 9.467),
-        'neck': (31.898, -3.804, -38.289), 'head': (12.44, -1.039),
-        'right_clavicle': (11.814, 6.609), 'right_shoulder': (21.132, 34.015, -4.487),
-        'right_elbow': (42.88, 12.529), 'right_wrist': (-4.697, 10.793),
+        'right_clavicle': (3.654, 7.245), 'right_shoulder': (22.216, 40.252, -9.861),
+        'right_elbow': (35.778, 6.78), 'right_wrist': (-3.61, 19.084),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.211, -0.847, 10.835), 'spine_thoracic': (-10.281, -2.157, 10.105),
-        'neck': (32.331, -4.523, -41.617), 'right_clavicle': (6.687, 8.258),
-        'right_shoulder': (21.367, 38.13, -11.889), 'right_elbow': (44.041, 7.592),
-        'right_wrist': (-5.799, 10.962),
+        'right_clavicle': (-1.708, 12.171), 'right_shoulder': (21.905, 45.877, -15.968),
+        'right_elbow': (34.042, 5.017), 'right_wrist': (-5.1, 19.136),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.436, -0.991, 10.706), 'spine_thoracic': (-10.038, -2.721, 10.053),
-        'neck': (32.325, -4.521, -41.595), 'head': (12.388, -1.089),
-        'right_clavicle': (6.902, 8.383), 'right_shoulder': (20.947, 38.551, -11.606),
-        'right_elbow': (44.12, 8.062), 'right_wrist': (-5.871, 11.247),
+        'right_clavicle': (-0.465, 12.298), 'right_shoulder': (20.858, 47.204, -14.169),
+        'right_elbow': (33.375, 6.965), 'right_wrist': (-5.056, 19.786),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.385, -3.22, 9.204), 'spine_thoracic': (-7.997, -8.27, 9.822),
-        'neck': (32.627, -4.291, -41.668), 'head': (12.756, -1.078),
-        'right_clavicle': (14.996, 8.169), 'right_shoulder': (17.687, 41.13, -3.388),
-        'right_elbow': (42.65, 17.222), 'right_wrist': (-6.266, 11.989),
+        'right_clavicle': (14.16, 12.507), 'right_shoulder': (14.352, 47.869, -1.236),
+        'right_elbow': (35.653, 21.165), 'right_wrist': (-8.202, 13.489),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.092, -8.179, 8.174), 'spine_thoracic': (-5.999, -10.0, 9.732),
-        'neck': (33.485, -4.128, -43.16), 'head': (13.452, -1.026),
-        'right_clavicle': (20.073, 8.504), 'right_shoulder': (14.618, 43.232, 1.682),
-        'right_elbow': (40.693, 23.52), 'right_wrist': (-6.812, 10.078),
+        'right_clavicle': (21.813, 12.214), 'right_shoulder': (13.504, 44.854, 4.591),
+        'right_elbow': (38.605, 26.844), 'right_wrist': (-8.978, 6.874),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (10.009, -3.603, 8.542), 'spine_thoracic': (-8.153, -6.791, 9.215),
-        'neck': (32.342, -3.647, -38.95), 'right_clavicle': (16.204, 7.257),
-        'right_shoulder': (17.356, 37.562, 0.143), 'right_elbow': (42.621, 18.883),
-        'right_wrist': (-5.589, 11.74),
+        'right_clavicle': (10.846, 5.235), 'right_shoulder': (17.955, 39.26, -3.489),
+        'right_elbow': (39.503, 13.735), 'right_wrist': (-5.356, 16.433),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.457, 0.933, 10.792), 'spine_thoracic': (-11.039, -1.864, 10.12),
-        'neck': (32.085, -4.292, -40.27), 'head': (12.32, -1.071), 'right_clavicle': (8.945, 7.36),
-        'right_shoulder': (22.473, 35.442, -8.999), 'right_elbow': (43.082, 8.888),
-        'right_wrist': (-5.013, 10.175),
+        'right_clavicle': (-0.274, 10.968), 'right_shoulder': (23.107, 44.206, -13.982),
+        'right_elbow': (33.131, 4.87), 'right_wrist': (-3.996, 19.699),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-1.983, 12.361), 'right_shoulder': (21.476, 46.204, -16.393),
+        'right_elbow': (34.507, 5.153), 'right_wrist': (-5.406, 18.896),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (12.45, -1.288, 10.002), 'spine_thoracic': (-9.274, -5.506, 9.946),
-        'neck': (32.316, -4.414, -41.246), 'head': (12.44, -1.083),
-        'right_clavicle': (11.006, 8.154), 'right_shoulder': (19.708, 39.451, -7.342),
-        'right_elbow': (43.504, 12.52), 'right_wrist': (-5.919, 11.927),
+        'right_clavicle': (6.333, 12.589), 'right_shoulder': (17.014, 49.064, -7.541),
+        'right_elbow': (32.957, 14.274), 'right_wrist': (-6.467, 18.92),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (14.08, -7.025, 8.318), 'spine_thoracic': (-6.372, -9.999, 9.686),
-        'neck': (33.28, -4.159, -42.767), 'head': (13.285, -1.036), 'right_clavicle': (18.8, 8.481),
-        'right_shoulder': (15.148, 43.045, 0.414), 'right_elbow': (41.294, 22.114),
-        'right_wrist': (-6.772, 10.791),
+        'right_clavicle': (20.968, 12.421), 'right_shoulder': (13.369, 45.484, 3.937),
+        'right_elbow': (38.392, 26.48), 'right_wrist': (-9.111, 7.448),
     })
     human.KeyJoints(26.8, {
-        'spine_lumbar': (12.971, -7.92, 8.082), 'spine_thoracic': (-6.136, -9.875, 9.564),
-        'neck': (33.369, -3.909, -42.048), 'head': (13.419, -0.977),
-        'right_clavicle': (19.734, 8.296), 'right_shoulder': (14.703, 41.916, 2.233),
-        'right_elbow': (40.993, 23.398), 'right_wrist': (-6.573, 10.32),
+        'right_clavicle': (19.859, 7.222), 'right_shoulder': (14.125, 40.657, 3.257),
+        'right_elbow': (41.826, 23.253), 'right_wrist': (-8.114, 9.349),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (9.238, 1.105, 10.138), 'spine_thoracic': (-10.894, -2.254, 9.676),
-        'neck': (31.906, -3.918, -38.66), 'head': (12.384, -1.046),
-        'right_clavicle': (10.844, 6.68), 'right_shoulder': (21.964, 33.953, -5.879),
-        'right_elbow': (42.824, 11.068), 'right_wrist': (-4.658, 10.351),
+        'right_clavicle': (2.195, 8.336), 'right_shoulder': (22.915, 41.188, -11.308),
+        'right_elbow': (34.708, 5.715), 'right_wrist': (-3.506, 19.4),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (11.331, -1.362, 10.821), 'spine_thoracic': (-10.053, -2.227, 10.066),
-        'neck': (32.396, -4.564, -41.911), 'right_clavicle': (6.032, 8.484),
-        'right_shoulder': (21.006, 38.799, -12.636), 'right_elbow': (44.324, 7.26),
-        'right_wrist': (-6.008, 11.194),
+        'right_clavicle': (-1.986, 12.341), 'right_shoulder': (21.546, 46.135, -16.4),
+        'right_elbow': (34.481, 5.088), 'right_wrist': (-5.381, 18.896),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (11.557, -0.706, 10.587), 'spine_thoracic': (-10.044, -3.223, 10.043),
-        'neck': (32.275, -4.472, -41.316), 'head': (12.375, -1.085),
-        'right_clavicle': (7.822, 8.278), 'right_shoulder': (20.947, 38.36, -10.559),
-        'right_elbow': (43.918, 8.923), 'right_wrist': (-5.763, 11.291),
+        'right_clavicle': (0.537, 12.401), 'right_shoulder': (20.073, 47.934, -12.971),
+        'right_elbow': (33.065, 8.319), 'right_wrist': (-5.259, 19.998),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.623, -4.158, 8.939), 'spine_thoracic': (-7.537, -8.973, 9.78),
-        'neck': (32.783, -4.245, -41.923), 'right_clavicle': (16.191, 8.23),
-        'right_shoulder': (16.964, 41.692, -2.198), 'right_elbow': (42.293, 18.705),
-        'right_wrist': (-6.405, 11.776),
+        'right_clavicle': (16.413, 12.5), 'right_shoulder': (13.765, 47.27, 0.475),
+        'right_elbow': (36.745, 23.119), 'right_wrist': (-8.726, 11.41),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.987, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.126, 8.504), 'right_shoulder': (14.602, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'right_clavicle': (22.288, 11.555), 'right_shoulder': (13.465, 44.066, 4.936),
+        'right_elbow': (39.382, 26.928), 'right_wrist': (-9.004, 6.484),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (9.355, -1.917, 8.895), 'spine_thoracic': (-9.027, -5.319, 9.209),
-        'neck': (32.1, -3.653, -38.346), 'head': (12.684, -1.032),
-        'right_clavicle': (14.613, 6.908), 'right_shoulder': (18.7, 36.035, -1.317),
-        'right_elbow': (42.868, 16.639), 'right_wrist': (-5.213, 11.719),
+        'right_clavicle': (8.004, 5.432), 'right_shoulder': (19.555, 39.252, -5.869),
+        'right_elbow': (38.273, 10.88), 'right_wrist': (-4.575, 17.764),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.77, 0.43, 10.845), 'spine_thoracic': (-10.832, -1.965, 10.158),
-        'neck': (32.168, -4.383, -40.763), 'head': (12.337, -1.078),
-        'right_clavicle': (8.348, 7.639), 'right_shoulder': (22.203, 36.292, -9.859),
-        'right_elbow': (43.342, 8.507), 'right_wrist': (-5.248, 10.397),
+        'right_clavicle': (-0.804, 11.488), 'right_shoulder': (22.821, 44.908, -14.661),
+        'right_elbow': (33.117, 4.867), 'right_wrist': (-4.328, 19.68),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
-        'spine_lumbar': (11.353, -1.423, 10.813), 'spine_thoracic': (-10.017, -2.262, 10.059),
-        'neck': (32.402, -4.567, -41.939), 'right_clavicle': (5.973, 8.514),
-        'right_shoulder': (20.947, 38.889, -12.701), 'right_elbow': (44.358, 7.247),
-        'right_wrist': (-6.033, 11.232),
+        'right_clavicle': (-1.753, 12.339), 'right_shoulder': (21.416, 46.349, -16.028),
+        'right_elbow': (34.284, 5.412), 'right_wrist': (-5.306, 19.077),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.788, -1.766, 9.748), 'spine_thoracic': (-8.885, -6.458, 9.906),
-        'neck': (32.387, -4.382, -41.328), 'head': (12.514, -1.081),
-        'right_clavicle': (12.318, 8.135), 'right_shoulder': (19.089, 39.988, -6.043),
-        'right_elbow': (43.276, 14.042), 'right_wrist': (-6.02, 12.069),
+        'right_clavicle': (8.919, 12.571), 'right_shoulder': (16.011, 48.878, -5.378),
+        'right_elbow': (33.591, 16.598), 'right_wrist': (-7.016, 17.51),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (14.089, -7.629, 8.234), 'spine_thoracic': (-6.169, -10.0, 9.698),
-        'neck': (33.381, -4.145, -42.964), 'head': (13.366, -1.031),
-        'right_clavicle': (19.418, 8.498), 'right_shoulder': (14.853, 43.172, 1.03),
-        'right_elbow': (41.01, 22.827), 'right_wrist': (-6.8, 10.458),
+        'right_clavicle': (21.483, 12.39), 'right_shoulder': (13.398, 45.204, 4.332),
+        'right_elbow': (38.483, 26.768), 'right_wrist': (-9.085, 7.063),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (11.991, -6.962, 8.121), 'spine_thoracic': (-6.565, -9.302, 9.419),
-        'neck': (33.097, -3.783, -41.004), 'head': (13.284, -0.976),
-        'right_clavicle': (18.914, 8.036), 'right_shoulder': (15.193, 40.7, 2.021),
-        'right_elbow': (41.522, 22.503), 'right_wrist': (-6.324, 10.872),
+        'right_clavicle': (17.178, 6.011), 'right_shoulder': (15.056, 39.942, 1.347),
+        'right_elbow': (41.513, 20.295), 'right_wrist': (-7.26, 11.91),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (9.63, 1.245, 10.45), 'spine_thoracic': (-11.071, -1.942, 9.876),
-        'neck': (31.964, -4.055, -39.228), 'head': (12.354, -1.055),
-        'right_clavicle': (10.101, 6.847), 'right_shoulder': (22.391, 34.044, -7.078),
-        'right_elbow': (42.82, 10.045), 'right_wrist': (-4.673, 10.15),
+        'right_clavicle': (1.096, 9.411), 'right_shoulder': (23.292, 42.309, -12.435),
+        'right_elbow': (33.779, 5.071), 'right_wrist': (-3.575, 19.648),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-2.03, 12.366), 'right_shoulder': (21.487, 46.174, -16.47),
+        'right_elbow': (34.554, 5.1), 'right_wrist': (-5.427, 18.858),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (11.789, -0.758, 10.429), 'spine_thoracic': (-9.911, -3.849, 10.02),
-        'neck': (32.274, -4.44, -41.215), 'head': (12.392, -1.083),
-        'right_clavicle': (8.751, 8.225), 'right_shoulder': (20.731, 38.537, -9.592),
-        'right_elbow': (43.797, 9.928), 'right_wrist': (-5.778, 11.455),
+        'right_clavicle': (1.972, 12.494), 'right_shoulder': (19.123, 48.609, -11.435),
+        'right_elbow': (32.841, 10.029), 'right_wrist': (-5.555, 20.0),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.82, -5.166, 8.694), 'spine_thoracic': (-7.094, -9.498, 9.74),
-        'neck': (32.967, -4.208, -42.209), 'head': (13.044, -1.058),
-        'right_clavicle': (17.229, 8.312), 'right_shoulder': (16.271, 42.218, -1.159),
-        'right_elbow': (41.934, 20.04), 'right_wrist': (-6.542, 11.477),
+        'right_clavicle': (18.235, 12.517), 'right_shoulder': (13.333, 46.741, 1.848),
+        'right_elbow': (37.66, 24.697), 'right_wrist': (-9.141, 9.665),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (14.025, -8.196, 8.176), 'spine_thoracic': (-5.998, -10.0, 9.738),
-        'neck': (33.494, -4.113, -43.124), 'head': (13.461, -1.022),
-        'right_clavicle': (20.19, 8.481), 'right_shoulder': (14.626, 43.129, 1.832),
-        'right_elbow': (40.643, 23.614), 'right_wrist': (-6.786, 10.016),
+        'right_clavicle': (22.287, 10.334), 'right_shoulder': (13.467, 42.897, 4.939),
+        'right_elbow': (40.619, 26.641), 'right_wrist': (-8.963, 6.551),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (9.052, -0.537, 9.306), 'spine_thoracic': (-9.811, -3.995, 9.292),
-        'neck': (31.955, -3.71, -38.145), 'head': (12.538, -1.034),
-        'right_clavicle': (13.109, 6.688), 'right_shoulder': (19.995, 34.818, -2.906),
-        'right_elbow': (42.937, 14.459), 'right_wrist': (-4.906, 11.321),
+        'right_clavicle': (5.593, 6.235), 'right_shoulder': (21.031, 39.582, -8.025),
+        'right_elbow': (37.019, 8.524), 'right_wrist': (-3.977, 18.594),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (11.019, -0.167, 10.844), 'spine_thoracic': (-10.579, -2.061, 10.144),
-        'neck': (32.244, -4.458, -41.193), 'head': (12.357, -1.084),
-        'right_clavicle': (7.557, 7.95), 'right_shoulder': (21.833, 37.213, -10.87),
-        'right_elbow': (43.669, 8.048), 'right_wrist': (-5.517, 10.659),
+        'right_clavicle': (-1.294, 11.883), 'right_shoulder': (22.387, 45.459, -15.35),
+        'right_elbow': (33.493, 4.928), 'right_wrist': (-4.714, 19.452),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.375, -1.286, 10.781), 'spine_thoracic': (-10.025, -2.399, 10.058),
-        'neck': (32.378, -4.553, -41.832), 'head': (12.413, -1.092),
-        'right_clavicle': (6.256, 8.473), 'right_shoulder': (20.947, 38.775, -12.365),
-        'right_elbow': (44.284, 7.492), 'right_wrist': (-5.982, 11.233),
+        'right_clavicle': (-1.255, 12.307), 'right_shoulder': (21.242, 46.669, -15.266),
+        'right_elbow': (33.844, 5.99), 'right_wrist': (-5.137, 19.43),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (13.102, -2.404, 9.48), 'spine_thoracic': (-8.458, -7.402, 9.864),
-        'neck': (32.491, -4.339, -41.465), 'head': (12.62, -1.08),
-        'right_clavicle': (13.667, 8.138), 'right_shoulder': (18.412, 40.55, -4.707),
-        'right_elbow': (42.989, 15.626), 'right_wrist': (-6.135, 12.084),
+        'right_clavicle': (11.576, 12.535), 'right_shoulder': (15.115, 48.446, -3.242),
+        'right_elbow': (34.53, 18.924), 'right_wrist': (-7.605, 15.639),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (14.091, -8.001, 8.191), 'spine_thoracic': (-6.052, -10.0, 9.719),
-        'neck': (33.45, -4.134, -43.095), 'head': (13.423, -1.028),
-        'right_clavicle': (19.853, 8.503), 'right_shoulder': (14.69, 43.222, 1.462),
-        'right_elbow': (40.801, 23.291), 'right_wrist': (-6.81, 10.208),
+        'right_clavicle': (21.583, 12.384), 'right_shoulder': (13.404, 45.149, 4.409),
+        'right_elbow': (38.499, 26.824), 'right_wrist': (-9.079, 6.989),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (10.942, -5.42, 8.272), 'spine_thoracic': (-7.276, -8.216, 9.289),
-        'neck': (32.704, -3.693, -39.895), 'head': (13.09, -1.01),
-        'right_clavicle': (17.713, 7.667), 'right_shoulder': (16.113, 39.206, 1.318),
-        'right_elbow': (42.128, 20.951), 'right_wrist': (-5.984, 11.474),
+        'right_clavicle': (14.034, 5.248), 'right_shoulder': (16.376, 39.471, -0.985),
+        'right_elbow': (40.633, 17.004), 'right_wrist': (-6.295, 14.43),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (10.077, 1.187, 10.674), 'spine_thoracic': (-11.121, -1.823, 10.037),
-        'neck': (32.026, -4.188, -39.796), 'head': (12.33, -1.064),
-        'right_clavicle': (9.517, 7.097), 'right_shoulder': (22.572, 34.703, -8.096),
-        'right_elbow': (42.914, 9.353), 'right_wrist': (-4.825, 10.086),
+        'right_clavicle': (0.303, 10.275), 'right_shoulder': (23.323, 43.317, -13.307),
+        'right_elbow': (33.349, 4.908), 'right_wrist': (-3.707, 19.696),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-2.03, 12.366), 'right_shoulder': (21.487, 46.174, -16.47),
+        'right_elbow': (34.554, 5.1), 'right_wrist': (-5.427, 18.858),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (12.105, -0.95, 10.235), 'spine_thoracic': (-9.616, -4.605, 9.985),
-        'neck': (32.278, -4.436, -41.213), 'head': (12.397, -1.083),
-        'right_clavicle': (9.78, 8.186), 'right_shoulder': (20.256, 38.956, -8.561),
-        'right_elbow': (43.675, 11.109), 'right_wrist': (-5.834, 11.709),
+        'right_clavicle': (3.951, 12.568), 'right_shoulder': (18.089, 48.973, -9.624),
+        'right_elbow': (32.714, 12.025), 'right_wrist': (-5.97, 19.763),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (13.975, -6.15, 8.484), 'spine_thoracic': (-6.697, -9.833, 9.707),
-        'neck': (33.137, -4.179, -42.5), 'head': (13.174, -1.044),
-        'right_clavicle': (18.093, 8.402), 'right_shoulder': (15.653, 42.68, -0.291),
-        'right_elbow': (41.596, 21.181), 'right_wrist': (-6.669, 11.136),
+        'right_clavicle': (19.842, 12.481), 'right_shoulder': (13.333, 46.068, 3.072),
+        'right_elbow': (38.147, 25.807), 'right_wrist': (-9.143, 8.317),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (13.69, -8.209, 8.132), 'spine_thoracic': (-6.005, -10.0, 9.688),
-        'neck': (33.478, -4.041, -42.803), 'head': (13.465, -1.004),
-        'right_clavicle': (20.129, 8.429), 'right_shoulder': (14.592, 42.744, 2.1),
-        'right_elbow': (40.704, 23.66), 'right_wrist': (-6.72, 10.052),
+        'right_clavicle': (21.693, 8.782), 'right_shoulder': (13.606, 41.68, 4.533),
+        'right_elbow': (41.56, 25.49), 'right_wrist': (-8.717, 7.345),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (9.034, 0.476, 9.736), 'spine_thoracic': (-10.445, -2.95, 9.464),
-        'neck': (31.898, -3.803, -38.285), 'head': (12.441, -1.039),
-        'right_clavicle': (11.833, 6.609), 'right_shoulder': (21.116, 34.021, -4.462),
-        'right_elbow': (42.881, 12.557), 'right_wrist': (-4.699, 10.801),
+        'right_clavicle': (3.683, 7.226), 'right_shoulder': (22.199, 40.238, -9.833),
+        'right_elbow': (35.798, 6.805), 'right_wrist': (-3.615, 19.077),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (11.208, -0.836, 10.835), 'spine_thoracic': (-10.286, -2.155, 10.106),
-        'neck': (32.33, -4.522, -41.611), 'right_clavicle': (6.7, 8.254),
-        'right_shoulder': (21.374, 38.116, -11.874), 'right_elbow': (44.036, 7.599),
-        'right_wrist': (-5.795, 10.958),
+        'right_clavicle': (-1.702, 12.167), 'right_shoulder': (21.912, 45.871, -15.959),
+        'right_elbow': (34.033, 5.015), 'right_wrist': (-5.094, 19.141),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.434, -0.997, 10.708), 'spine_thoracic': (-10.038, -2.714, 10.054),
-        'neck': (32.326, -4.522, -41.6), 'head': (12.388, -1.089), 'right_clavicle': (6.888, 8.385),
-        'right_shoulder': (20.947, 38.555, -11.622), 'right_elbow': (44.123, 8.05),
-        'right_wrist': (-5.873, 11.247),
+        'right_clavicle': (-0.48, 12.297), 'right_shoulder': (20.867, 47.193, -14.189),
+        'right_elbow': (33.381, 6.945), 'right_wrist': (-5.055, 19.781),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (13.381, -3.205, 9.208), 'spine_thoracic': (-8.005, -8.257, 9.822),
-        'neck': (32.625, -4.292, -41.664), 'head': (12.753, -1.078),
-        'right_clavicle': (14.975, 8.168), 'right_shoulder': (17.699, 41.12, -3.409),
-        'right_elbow': (42.656, 17.196), 'right_wrist': (-6.264, 11.991),
+        'right_clavicle': (14.119, 12.507), 'right_shoulder': (14.363, 47.879, -1.267),
+        'right_elbow': (35.634, 21.13), 'right_wrist': (-8.192, 13.525),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (14.092, -8.177, 8.174), 'spine_thoracic': (-5.999, -10.0, 9.731),
-        'neck': (33.485, -4.128, -43.16), 'head': (13.451, -1.026),
-        'right_clavicle': (20.071, 8.504), 'right_shoulder': (14.618, 43.232, 1.68),
-        'right_elbow': (40.694, 23.517), 'right_wrist': (-6.812, 10.079),
+        'right_clavicle': (21.808, 12.219), 'right_shoulder': (13.504, 44.862, 4.587),
+        'right_elbow': (38.602, 26.843), 'right_wrist': (-8.979, 6.878),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (10.023, -3.633, 8.536), 'spine_thoracic': (-8.138, -6.816, 9.216),
-        'neck': (32.346, -3.648, -38.963), 'right_clavicle': (16.231, 7.263),
-        'right_shoulder': (17.333, 37.59, 0.166), 'right_elbow': (42.614, 18.921),
-        'right_wrist': (-5.596, 11.738),
+        'right_clavicle': (10.898, 5.234), 'right_shoulder': (17.928, 39.262, -3.446),
+        'right_elbow': (39.523, 13.788), 'right_wrist': (-5.371, 16.404),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.451, 0.941, 10.79), 'spine_thoracic': (-11.042, -1.862, 10.119),
-        'neck': (32.084, -4.29, -40.261), 'head': (12.32, -1.071), 'right_clavicle': (8.954, 7.355),
-        'right_shoulder': (22.477, 35.428, -8.985), 'right_elbow': (43.078, 8.894),
-        'right_wrist': (-5.01, 10.172),
+        'right_clavicle': (-0.265, 10.958), 'right_shoulder': (23.112, 44.192, -13.971),
+        'right_elbow': (33.134, 4.87), 'right_wrist': (-3.991, 19.699),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-1.985, 12.361), 'right_shoulder': (21.477, 46.203, -16.397),
+        'right_elbow': (34.509, 5.151), 'right_wrist': (-5.406, 18.894),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (12.444, -1.282, 10.006), 'spine_thoracic': (-9.28, -5.49, 9.947),
-        'neck': (32.315, -4.415, -41.246), 'head': (12.439, -1.083),
-        'right_clavicle': (10.985, 8.154), 'right_shoulder': (19.717, 39.442, -7.364),
-        'right_elbow': (43.508, 12.495), 'right_wrist': (-5.917, 11.924),
+        'right_clavicle': (6.291, 12.589), 'right_shoulder': (17.032, 49.065, -7.577),
+        'right_elbow': (32.949, 14.235), 'right_wrist': (-6.458, 18.939),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (14.08, -7.013, 8.32), 'spine_thoracic': (-6.376, -9.998, 9.686),
-        'neck': (33.278, -4.159, -42.763), 'head': (13.284, -1.036),
-        'right_clavicle': (18.789, 8.48), 'right_shoulder': (15.155, 43.042, 0.403),
-        'right_elbow': (41.299, 22.1), 'right_wrist': (-6.771, 10.797),
+        'right_clavicle': (20.955, 12.422), 'right_shoulder': (13.368, 45.491, 3.926),
+        'right_elbow': (38.39, 26.472), 'right_wrist': (-9.111, 7.458),
     })
     human.KeyJoints(30.6, {
-        'spine_lumbar': (12.986, -7.93, 8.083), 'spine_thoracic': (-6.131, -9.88, 9.566),
-        'neck': (33.372, -3.911, -42.065), 'head': (13.421, -0.977),
-        'right_clavicle': (19.745, 8.299), 'right_shoulder': (14.699, 41.934, 2.232),
-        'right_elbow': (40.986, 23.408), 'right_wrist': (-6.576, 10.313),
+        'right_clavicle': (19.898, 7.247), 'right_shoulder': (14.113, 40.672, 3.285),
+        'right_elbow': (41.828, 23.297), 'right_wrist': (-8.126, 9.309),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (9.232, 1.098, 10.132), 'spine_thoracic': (-10.888, -2.263, 9.672),
-        'neck': (31.906, -3.916, -38.651), 'head': (12.385, -1.046),
-        'right_clavicle': (10.858, 6.678), 'right_shoulder': (21.952, 33.953, -5.857),
-        'right_elbow': (42.825, 11.089), 'right_wrist': (-4.658, 10.357),
+        'right_clavicle': (2.216, 8.318), 'right_shoulder': (22.907, 41.171, -11.287),
+        'right_elbow': (34.726, 5.728), 'right_wrist': (-3.506, 19.396),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (11.33, -1.356, 10.821), 'spine_thoracic': (-10.055, -2.227, 10.067),
-        'neck': (32.395, -4.563, -41.908), 'right_clavicle': (6.04, 8.481),
-        'right_shoulder': (21.011, 38.792, -12.627), 'right_elbow': (44.321, 7.264),
-        'right_wrist': (-6.005, 11.191),
+        'right_clavicle': (-1.983, 12.339), 'right_shoulder': (21.55, 46.132, -16.395),
+        'right_elbow': (34.476, 5.087), 'right_wrist': (-5.378, 18.899),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (11.555, -0.708, 10.589), 'spine_thoracic': (-10.044, -3.213, 10.044),
-        'neck': (32.275, -4.473, -41.319), 'head': (12.375, -1.085),
-        'right_clavicle': (7.805, 8.279), 'right_shoulder': (20.947, 38.361, -10.577),
-        'right_elbow': (43.921, 8.907), 'right_wrist': (-5.763, 11.29),
+        'right_clavicle': (0.516, 12.399), 'right_shoulder': (20.088, 47.921, -12.994),
+        'right_elbow': (33.07, 8.293), 'right_wrist': (-5.255, 19.997),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.62, -4.142, 8.943), 'spine_thoracic': (-7.545, -8.963, 9.781),
-        'neck': (32.78, -4.246, -41.918), 'right_clavicle': (16.172, 8.229),
-        'right_shoulder': (16.976, 41.683, -2.217), 'right_elbow': (42.299, 18.681),
-        'right_wrist': (-6.402, 11.781),
+        'right_clavicle': (16.379, 12.5), 'right_shoulder': (13.774, 47.279, 0.45),
+        'right_elbow': (36.728, 23.089), 'right_wrist': (-8.717, 11.442),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.987, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.126, 8.504), 'right_shoulder': (14.602, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'right_clavicle': (22.281, 11.571), 'right_shoulder': (13.466, 44.084, 4.931),
+        'right_elbow': (39.361, 26.926), 'right_wrist': (-9.003, 6.49),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (9.364, -1.944, 8.888), 'spine_thoracic': (-9.013, -5.343, 9.209),
-        'neck': (32.104, -3.652, -38.353), 'head': (12.686, -1.032),
-        'right_clavicle': (14.64, 6.913), 'right_shoulder': (18.677, 36.059, -1.291),
-        'right_elbow': (42.866, 16.677), 'right_wrist': (-5.219, 11.723),
+        'right_clavicle': (8.049, 5.423), 'right_shoulder': (19.528, 39.248, -5.83),
+        'right_elbow': (38.294, 10.925), 'right_wrist': (-4.587, 17.746),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.765, 0.438, 10.845), 'spine_thoracic': (-10.835, -1.964, 10.158),
-        'neck': (32.167, -4.381, -40.756), 'head': (12.336, -1.078),
-        'right_clavicle': (8.359, 7.634), 'right_shoulder': (22.207, 36.277, -9.843),
-        'right_elbow': (43.337, 8.514), 'right_wrist': (-5.244, 10.393),
+        'right_clavicle': (-0.795, 11.48), 'right_shoulder': (22.827, 44.898, -14.649),
+        'right_elbow': (33.114, 4.867), 'right_wrist': (-4.322, 19.682),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
-        'spine_lumbar': (11.353, -1.424, 10.813), 'spine_thoracic': (-10.017, -2.261, 10.059),
-        'neck': (32.403, -4.568, -41.94), 'right_clavicle': (5.971, 8.514),
-        'right_shoulder': (20.947, 38.89, -12.703), 'right_elbow': (44.359, 7.245),
-        'right_wrist': (-6.034, 11.232),
+        'right_clavicle': (-1.759, 12.339), 'right_shoulder': (21.417, 46.345, -16.038),
+        'right_elbow': (34.289, 5.405), 'right_wrist': (-5.309, 19.072),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.782, -1.757, 9.752), 'spine_thoracic': (-8.892, -6.442, 9.906),
-        'neck': (32.385, -4.382, -41.326), 'head': (12.512, -1.081),
-        'right_clavicle': (12.295, 8.135), 'right_shoulder': (19.1, 39.979, -6.065),
-        'right_elbow': (43.28, 14.015), 'right_wrist': (-6.018, 12.067),
+        'right_clavicle': (8.874, 12.572), 'right_shoulder': (16.027, 48.884, -5.414),
+        'right_elbow': (33.578, 16.559), 'right_wrist': (-7.006, 17.538),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.089, -7.621, 8.235), 'spine_thoracic': (-6.172, -10.0, 9.698),
-        'neck': (33.379, -4.145, -42.961), 'head': (13.365, -1.031),
-        'right_clavicle': (19.409, 8.497), 'right_shoulder': (14.857, 43.17, 1.021),
-        'right_elbow': (41.014, 22.817), 'right_wrist': (-6.799, 10.464),
+        'right_clavicle': (21.478, 12.39), 'right_shoulder': (13.397, 45.206, 4.329),
+        'right_elbow': (38.482, 26.766), 'right_wrist': (-9.085, 7.066),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (12.009, -6.985, 8.119), 'spine_thoracic': (-6.555, -9.318, 9.422),
-        'neck': (33.103, -3.785, -41.023), 'head': (13.287, -0.976),
-        'right_clavicle': (18.932, 8.041), 'right_shoulder': (15.18, 40.723, 2.03),
-        'right_elbow': (41.512, 22.524), 'right_wrist': (-6.329, 10.861),
+        'right_clavicle': (17.226, 6.026), 'right_shoulder': (15.038, 39.951, 1.382),
+        'right_elbow': (41.521, 20.347), 'right_wrist': (-7.275, 11.868),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (9.623, 1.246, 10.446), 'spine_thoracic': (-11.069, -1.945, 9.872),
-        'neck': (31.963, -4.053, -39.218), 'head': (12.354, -1.055),
-        'right_clavicle': (10.111, 6.843), 'right_shoulder': (22.386, 34.037, -7.06),
-        'right_elbow': (42.82, 10.059), 'right_wrist': (-4.672, 10.151),
+        'right_clavicle': (1.112, 9.394), 'right_shoulder': (23.288, 42.29, -12.418),
+        'right_elbow': (33.791, 5.078), 'right_wrist': (-3.573, 19.645),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-2.03, 12.366), 'right_shoulder': (21.487, 46.174, -16.47),
+        'right_elbow': (34.554, 5.1), 'right_wrist': (-5.427, 18.858),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (11.784, -0.755, 10.432), 'spine_thoracic': (-9.916, -3.837, 10.021),
-        'neck': (32.274, -4.44, -41.215), 'head': (12.392, -1.083),
-        'right_clavicle': (8.735, 8.225), 'right_shoulder': (20.739, 38.53, -9.608),
-        'right_elbow': (43.798, 9.91), 'right_wrist': (-5.777, 11.45),
+        'right_clavicle': (1.944, 12.493), 'right_shoulder': (19.14, 48.6, -11.463),
+        'right_elbow': (32.844, 9.998), 'right_wrist': (-5.549, 20.0),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.817, -5.148, 8.698), 'spine_thoracic': (-7.101, -9.49, 9.741),
-        'neck': (32.964, -4.208, -42.204), 'head': (13.042, -1.058),
-        'right_clavicle': (17.213, 8.31), 'right_shoulder': (16.282, 42.21, -1.175),
-        'right_elbow': (41.94, 20.019), 'right_wrist': (-6.54, 11.483),
+        'right_clavicle': (18.206, 12.517), 'right_shoulder': (13.335, 46.751, 1.826),
+        'right_elbow': (37.648, 24.674), 'right_wrist': (-9.139, 9.691),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (14.028, -8.197, 8.176), 'spine_thoracic': (-5.998, -10.0, 9.738),
-        'neck': (33.494, -4.114, -43.126), 'head': (13.461, -1.022),
-        'right_clavicle': (20.189, 8.481), 'right_shoulder': (14.626, 43.133, 1.829),
-        'right_elbow': (40.643, 23.613), 'right_wrist': (-6.786, 10.016),
+        'right_clavicle': (22.29, 10.359), 'right_shoulder': (13.467, 42.919, 4.941),
+        'right_elbow': (40.598, 26.654), 'right_wrist': (-8.965, 6.545),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (9.053, -0.557, 9.299), 'spine_thoracic': (-9.799, -4.014, 9.29),
-        'neck': (31.957, -3.708, -38.145), 'head': (12.54, -1.033),
-        'right_clavicle': (13.132, 6.69), 'right_shoulder': (19.975, 34.835, -2.879),
-        'right_elbow': (42.938, 14.494), 'right_wrist': (-4.91, 11.328),
+        'right_clavicle': (5.629, 6.221), 'right_shoulder': (21.009, 39.575, -7.992),
+        'right_elbow': (37.039, 8.557), 'right_wrist': (-3.985, 18.584),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (11.015, -0.156, 10.844), 'spine_thoracic': (-10.584, -2.059, 10.144),
-        'neck': (32.243, -4.457, -41.185), 'head': (12.357, -1.084),
-        'right_clavicle': (7.572, 7.944), 'right_shoulder': (21.841, 37.197, -10.853),
-        'right_elbow': (43.663, 8.055), 'right_wrist': (-5.512, 10.654),
+        'right_clavicle': (-1.287, 11.877), 'right_shoulder': (22.395, 45.451, -15.339),
+        'right_elbow': (33.485, 4.926), 'right_wrist': (-4.707, 19.457),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.374, -1.29, 10.782), 'spine_thoracic': (-10.025, -2.395, 10.058),
-        'neck': (32.379, -4.553, -41.834), 'head': (12.414, -1.092),
-        'right_clavicle': (6.249, 8.474), 'right_shoulder': (20.947, 38.778, -12.374),
-        'right_elbow': (44.286, 7.486), 'right_wrist': (-5.984, 11.233),
+        'right_clavicle': (-1.265, 12.307), 'right_shoulder': (21.246, 46.662, -15.282),
+        'right_elbow': (33.853, 5.977), 'right_wrist': (-5.14, 19.423),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (13.097, -2.392, 9.485), 'spine_thoracic': (-8.465, -7.386, 9.865),
-        'neck': (32.489, -4.34, -41.462), 'head': (12.618, -1.08),
-        'right_clavicle': (13.645, 8.138), 'right_shoulder': (18.424, 40.54, -4.729),
-        'right_elbow': (42.994, 15.599), 'right_wrist': (-6.133, 12.084),
+        'right_clavicle': (11.532, 12.535), 'right_shoulder': (15.129, 48.454, -3.277),
+        'right_elbow': (34.513, 18.885), 'right_wrist': (-7.595, 15.673),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.091, -7.997, 8.191), 'spine_thoracic': (-6.054, -10.0, 9.719),
-        'neck': (33.449, -4.134, -43.094), 'head': (13.422, -1.028),
-        'right_clavicle': (19.847, 8.503), 'right_shoulder': (14.692, 43.221, 1.457),
-        'right_elbow': (40.804, 23.286), 'right_wrist': (-6.81, 10.211),
+        'right_clavicle': (21.583, 12.384), 'right_shoulder': (13.404, 45.149, 4.409),
+        'right_elbow': (38.499, 26.824), 'right_wrist': (-9.079, 6.989),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (10.96, -5.45, 8.268), 'spine_thoracic': (-7.262, -8.238, 9.291),
-        'neck': (32.711, -3.694, -39.913), 'head': (13.094, -1.009),
-        'right_clavicle': (17.737, 7.674), 'right_shoulder': (16.094, 39.233, 1.335),
-        'right_elbow': (42.118, 20.983), 'right_wrist': (-5.991, 11.465),
+        'right_clavicle': (14.088, 5.254), 'right_shoulder': (16.352, 39.477, -0.944),
+        'right_elbow': (40.65, 17.059), 'right_wrist': (-6.311, 14.391),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (10.07, 1.188, 10.672), 'spine_thoracic': (-11.121, -1.824, 10.036),
-        'neck': (32.025, -4.186, -39.788), 'head': (12.33, -1.064),
-        'right_clavicle': (9.527, 7.093), 'right_shoulder': (22.571, 34.691, -8.079),
-        'right_elbow': (42.912, 9.363), 'right_wrist': (-4.822, 10.087),
+        'right_clavicle': (0.314, 10.263), 'right_shoulder': (23.325, 43.301, -13.294),
+        'right_elbow': (33.354, 4.909), 'right_wrist': (-3.704, 19.696),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'right_clavicle': (-2.03, 12.366), 'right_shoulder': (21.487, 46.174, -16.47),
+        'right_elbow': (34.554, 5.1), 'right_wrist': (-5.427, 18.858),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (12.1, -0.945, 10.239), 'spine_thoracic': (-9.622, -4.591, 9.986),
-        'neck': (32.277, -4.436, -41.213), 'head': (12.396, -1.083),
-        'right_clavicle': (9.761, 8.187), 'right_shoulder': (20.264, 38.948, -8.58),
-        'right_elbow': (43.678, 11.087), 'right_wrist': (-5.833, 11.705),
+        'right_clavicle': (3.914, 12.568), 'right_shoulder': (18.107, 48.969, -9.657),
+        'right_elbow': (32.713, 11.99), 'right_wrist': (-5.962, 19.771),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.972, -6.134, 8.487), 'spine_thoracic': (-6.703, -9.829, 9.708),
-        'neck': (33.134, -4.179, -42.495), 'head': (13.172, -1.045), 'right_clavicle': (18.08, 8.4),
-        'right_shoulder': (15.662, 42.672, -0.304), 'right_elbow': (41.601, 21.164),
-        'right_wrist': (-6.667, 11.141),
+        'right_clavicle': (19.819, 12.482), 'right_shoulder': (13.332, 46.079, 3.054),
+        'right_elbow': (38.141, 25.792), 'right_wrist': (-9.143, 8.336),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (13.699, -8.208, 8.133), 'spine_thoracic': (-6.005, -10.0, 9.69),
-        'neck': (33.478, -4.043, -42.812), 'head': (13.465, -1.004),
-        'right_clavicle': (20.131, 8.43), 'right_shoulder': (14.593, 42.753, 2.096),
-        'right_elbow': (40.702, 23.66), 'right_wrist': (-6.721, 10.051),
+        'right_clavicle': (21.717, 8.809), 'right_shoulder': (13.6, 41.699, 4.55),
+        'right_elbow': (41.547, 25.521), 'right_wrist': (-8.725, 7.317),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (9.034, 0.463, 9.729), 'spine_thoracic': (-10.436, -2.964, 9.461),
-        'neck': (31.898, -3.802, -38.281), 'head': (12.442, -1.039),
-        'right_clavicle': (11.852, 6.61), 'right_shoulder': (21.1, 34.026, -4.437),
-        'right_elbow': (42.882, 12.585), 'right_wrist': (-4.7, 10.809),
+        'right_clavicle': (3.711, 7.207), 'right_shoulder': (22.182, 40.223, -9.805),
+        'right_elbow': (35.818, 6.829), 'right_wrist': (-3.62, 19.071),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.206, -0.825, 10.835), 'spine_thoracic': (-10.29, -2.154, 10.107),
-        'neck': (32.329, -4.521, -41.604), 'right_clavicle': (6.714, 8.249),
-        'right_shoulder': (21.382, 38.102, -11.858), 'right_elbow': (44.03, 7.606),
-        'right_wrist': (-5.79, 10.953),
+        'right_clavicle': (-1.696, 12.163), 'right_shoulder': (21.92, 45.866, -15.95),
+        'right_elbow': (34.025, 5.014), 'right_wrist': (-5.088, 19.146),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.471, -0.868, 10.668), 'spine_thoracic': (-10.042, -2.882, 10.051),
-        'neck': (32.302, -4.506, -41.49), 'head': (12.378, -1.088),
-        'right_clavicle': (7.213, 8.343), 'right_shoulder': (20.947, 38.465, -11.246),
-        'right_elbow': (44.045, 8.343), 'right_wrist': (-5.824, 11.258),
+        'right_clavicle': (-0.874, 12.296), 'right_shoulder': (21.074, 46.921, -14.718),
+        'right_elbow': (33.575, 6.448), 'right_wrist': (-5.063, 19.64),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.573, -3.939, 8.997), 'spine_thoracic': (-7.64, -8.831, 9.789),
-        'neck': (32.746, -4.255, -41.862), 'right_clavicle': (15.935, 8.214),
-        'right_shoulder': (17.125, 41.568, -2.453), 'right_elbow': (42.374, 18.383),
-        'right_wrist': (-6.373, 11.831),
+        'right_clavicle': (11.874, 12.531), 'right_shoulder': (15.022, 48.387, -3.008),
+        'right_elbow': (34.649, 19.183), 'right_wrist': (-7.673, 15.408),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.046),
+        'spine_lumbar': (9.914, -5.64, 10.197), 'spine_thoracic': (-9.44, -3.745, 9.71),
+        'neck': (33.38, -3.811, -41.718), 'head': (13.458, -0.957),
+        'right_clavicle': (21.577, 12.384), 'right_shoulder': (13.404, 45.152, 4.405),
+        'right_elbow': (38.499, 26.821), 'right_wrist': (-9.079, 6.993),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (7.366, -8.698, 8.102), 'spine_thoracic': (-7.652, -6.604, 8.686),
-        'neck': (33.223, -2.765, -38.22), 'head': (13.94, -0.918),
-        'right_clavicle': (13.007, 6.739), 'right_shoulder': (16.841, 33.38, -2.638),
-        'right_elbow': (38.817, 15.141), 'right_wrist': (-5.416, 3.602),
+        'spine_lumbar': (8.747, -9.504, 9.818), 'spine_thoracic': (-8.703, -3.897, 9.344),
+        'neck': (34.043, -3.378, -41.694), 'head': (14.065, -0.841),
+        'right_clavicle': (15.659, 3.016), 'right_shoulder': (14.99, 33.194, -1.308),
+        'right_elbow': (41.342, 15.492), 'right_wrist': (-6.576, 3.128),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (6.304, -11.43, 9.487), 'spine_thoracic': (-9.459, -4.08, 9.146),
-        'neck': (34.552, -2.438, -39.878), 'head': (14.873, -0.729),
-        'right_clavicle': (5.691, 6.712), 'right_shoulder': (20.2, 30.641, -13.083),
-        'right_elbow': (35.455, 4.515), 'right_wrist': (-5.392, -5.572),
+        'spine_lumbar': (7.268, -13.63, 9.489), 'spine_thoracic': (-8.414, -4.42, 9.056),
+        'neck': (34.862, -2.662, -41.06), 'head': (14.888, -0.675),
+        'right_clavicle': (4.625, 6.234), 'right_shoulder': (20.444, 31.775, -13.992),
+        'right_elbow': (35.068, 2.66), 'right_wrist': (-4.816, -3.658),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -3024,7 +2657,7 @@ def remove_access_panel():
     })
     human.KeyJoints(53.3, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -3036,60 +2669,57 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
     human.KeyJoints(53.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
-        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
-        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
+        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.001, 24.925),
+        'right_wrist': (-16.585, -18.209), 'left_shoulder': (88.17, -28.972, 15.116),
+        'left_elbow': (22.766, 17.988), 'left_wrist': (-0.043, -5.344),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.5, {
-        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
-        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
-        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
+        'right_shoulder': (27.639, 32.324, -8.721), 'right_elbow': (93.569, 25.223),
+        'right_wrist': (-17.032, -17.409), 'left_shoulder': (75.654, -26.716, 20.134),
+        'left_elbow': (36.017, 16.066), 'left_wrist': (-10.295, -3.741),
     })
     human.KeyJoints(53.6, {
-        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
-        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
-        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
+        'right_shoulder': (11.315, 26.209, -7.116), 'right_elbow': (101.099, 25.842),
+        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.757, 30.226),
+        'left_elbow': (57.105, 12.072), 'left_wrist': (-30.801, -1.332),
     })
     human.KeyJoints(53.7, {
-        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
-        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
-        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
+        'right_shoulder': (-11.077, 17.004, -3.453), 'right_elbow': (109.972, 26.53),
+        'right_wrist': (-20.576, -13.675), 'left_shoulder': (29.481, -15.175, 40.966),
+        'left_elbow': (78.739, 7.627), 'left_wrist': (-52.923, 0.912),
     })
     human.KeyJoints(53.8, {
-        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
-        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
-        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
+        'right_shoulder': (-29.508, 7.035, 3.903), 'right_elbow': (112.29, 26.906),
+        'right_wrist': (-20.715, -12.808), 'left_shoulder': (9.251, -6.256, 49.537),
+        'left_elbow': (94.695, 3.929), 'left_wrist': (-68.979, 2.456),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.9, {
-        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
-        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
-        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
+        'right_shoulder': (-37.765, 0.311, 11.585), 'right_elbow': (110.53, 26.669),
+        'right_wrist': (-19.401, -12.719), 'left_shoulder': (0.497, 9.024, 57.122),
+        'left_elbow': (103.608, 5.61), 'left_wrist': (-70.0, 4.728),
     })
     human.KeyJoints(54.0, {
-        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
-        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
-        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
+        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.535),
+        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-2.265, 13.728, 57.742),
+        'left_elbow': (104.423, 10.561), 'left_wrist': (-70.0, 10.004),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
-    human.KeyJoints(54.1, {
-        'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
-        'left_wrist': (-70.0, 7.97),
-    })
+    human.KeyJoints(54.1, {'left_shoulder': (-1.023, 15.115, 59.904), 'left_wrist': (-70.0, 8.226)})
     human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(54.102065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.045),
-        'left_wrist': (-70.0, 8.11), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_shoulder': (-40.328, -1.598, 14.492), 'right_elbow': (110.63, 26.533),
+        'right_wrist': (-18.934, -12.504), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (-0.811, 15.328, 60.219), 'left_elbow': (105.421, 9.029),
+        'left_wrist': (-70.0, 8.075), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

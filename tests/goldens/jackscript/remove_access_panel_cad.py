@@ -171,611 +171,427 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.432, 0.775, 1.773), 'spine_thoracic': (-3.938, -2.778, 1.708),
-        'neck': (0.455, -0.368, -26.985), 'head': (0.366, 0.0), 'right_clavicle': (3.99, 0.497),
-        'right_shoulder': (87.263, 12.415, -0.447), 'right_elbow': (33.674, 10.363),
-        'right_wrist': (-1.981, -28.135),
+        'spine_lumbar': (6.794, 0.97, 1.355), 'spine_thoracic': (-2.244, -2.214, 1.404),
+        'neck': (-0.559, -0.746, -26.419), 'right_clavicle': (10.217, 0.324),
+        'right_shoulder': (85.803, 16.166, 1.682), 'right_elbow': (34.773, 13.168),
+        'right_wrist': (-1.431, -23.896),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (12.712, 1.978, 0.875), 'spine_thoracic': (-8.378, -8.772, 1.226),
-        'neck': (0.51, -0.393, -29.38), 'head': (0.406, 0.0), 'right_clavicle': (14.645, -2.18),
-        'right_shoulder': (78.396, 22.373, 5.429), 'right_elbow': (38.088, 17.696),
-        'right_wrist': (-0.961, -13.602),
+        'spine_lumbar': (8.599, 1.375, 1.206), 'spine_thoracic': (-3.743, -3.702, 1.404),
+        'neck': (-0.508, -0.74, -27.1), 'right_clavicle': (27.454, 5.362),
+        'right_shoulder': (74.54, 35.685, 6.313), 'right_elbow': (33.116, 21.17),
+        'right_wrist': (-1.245, -1.792),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
-        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
-        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
-        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
+        'right_clavicle': (26.365, -1.687), 'right_shoulder': (72.383, 26.647, 5.281),
+        'right_elbow': (39.902, 18.475), 'right_wrist': (-2.351, -8.53),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (7.167, -0.862, 2.456), 'spine_thoracic': (-11.114, -6.26, 2.25),
-        'neck': (4.061, 0.965, -29.55), 'head': (4.225, 0.004), 'right_clavicle': (12.921, -2.248),
-        'right_shoulder': (70.065, 19.837, 2.176), 'right_elbow': (36.142, 14.203),
-        'right_wrist': (-2.125, -15.166),
+        'right_clavicle': (15.621, -7.841), 'right_shoulder': (78.077, 5.574, -3.0),
+        'right_elbow': (44.936, 6.355), 'right_wrist': (-5.493, -28.969),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (5.669, 0.088, 3.866), 'spine_thoracic': (-8.27, -2.305, 3.256),
-        'neck': (2.598, 0.405, -29.464), 'head': (2.653, 0.001), 'right_clavicle': (5.308, 0.004),
-        'right_shoulder': (81.094, 14.033, -3.603), 'right_elbow': (32.697, 7.943),
-        'right_wrist': (-3.159, -26.792),
+        'right_clavicle': (7.085, -2.874), 'right_shoulder': (86.178, 7.176, -3.37),
+        'right_elbow': (38.182, 6.691), 'right_wrist': (-3.991, -29.842),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.995, -1.614, 1.56),
-        'neck': (-0.569, -0.746, -26.225), 'head': (-0.73, -0.002),
-        'right_clavicle': (2.424, 0.872), 'right_shoulder': (90.602, 10.835, -0.424),
-        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.676, -29.315),
+        'right_clavicle': (2.339, -2.277), 'right_shoulder': (89.664, 8.116, -0.233),
+        'right_elbow': (35.733, 9.628), 'right_wrist': (-1.866, -29.426),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (9.512, 1.116, 1.417), 'spine_thoracic': (-6.826, -6.197, 1.482),
-        'neck': (0.931, -0.214, -28.448), 'head': (0.867, 0.0), 'right_clavicle': (9.303, -0.849),
-        'right_shoulder': (81.56, 17.499, 2.296), 'right_elbow': (35.792, 13.861),
-        'right_wrist': (-1.46, -20.665),
+        'right_clavicle': (20.815, 2.393), 'right_shoulder': (78.978, 28.415, 5.757),
+        'right_elbow': (34.329, 19.325), 'right_wrist': (-0.82, -9.414),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (15.829, 3.05, 0.438), 'spine_thoracic': (-9.555, -10.0, 1.185),
-        'neck': (-0.456, -0.778, -30.127), 'head': (-0.64, -0.004),
-        'right_clavicle': (20.326, -3.435), 'right_shoulder': (76.68, 27.353, 8.322),
-        'right_elbow': (40.381, 21.471), 'right_wrist': (-0.764, -6.82),
+        'right_clavicle': (28.382, 4.912), 'right_shoulder': (73.332, 35.395, 5.969),
+        'right_elbow': (33.897, 20.836), 'right_wrist': (-1.537, -1.728),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (13.221, 1.844, 0.941), 'spine_thoracic': (-10.495, -9.452, 1.516),
-        'neck': (1.308, -0.094, -29.661), 'head': (1.264, 0.0), 'right_clavicle': (19.52, -3.421),
-        'right_shoulder': (72.434, 26.095, 7.454), 'right_elbow': (39.92, 20.347),
-        'right_wrist': (-1.125, -6.845),
+        'right_clavicle': (20.707, -8.104), 'right_shoulder': (73.984, 12.325, 1.533),
+        'right_elbow': (45.356, 11.906), 'right_wrist': (-3.969, -21.845),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (4.651, -0.828, 4.47), 'spine_thoracic': (-11.049, -2.916, 3.639),
-        'neck': (4.408, 1.079, -30.453), 'head': (4.592, 0.005), 'right_clavicle': (7.054, -0.678),
-        'right_shoulder': (74.92, 15.414, -4.093), 'right_elbow': (32.439, 7.774),
-        'right_wrist': (-3.592, -24.535),
+        'right_clavicle': (11.054, -4.45), 'right_shoulder': (82.861, 5.83, -4.769),
+        'right_elbow': (40.91, 5.075), 'right_wrist': (-5.387, -30.0),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.274, 0.998, 1.668), 'spine_thoracic': (-2.219, -1.635, 1.624),
-        'neck': (-0.459, -0.706, -26.346), 'head': (-0.612, -0.002),
-        'right_clavicle': (2.528, 0.841), 'right_shoulder': (90.283, 10.955, -0.546),
-        'right_elbow': (33.952, 9.975), 'right_wrist': (-1.729, -29.232),
+        'right_clavicle': (1.124, -2.214), 'right_shoulder': (90.428, 7.52, -0.358),
+        'right_elbow': (35.477, 9.409), 'right_wrist': (-1.739, -29.992),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (7.07, 0.952, 1.941), 'spine_thoracic': (-5.104, -3.537, 1.867),
-        'neck': (0.778, -0.253, -27.457), 'head': (0.71, 0.0), 'right_clavicle': (5.168, 0.327),
-        'right_shoulder': (85.392, 13.681, -0.344), 'right_elbow': (34.113, 10.8),
-        'right_wrist': (-2.069, -26.206),
+        'right_clavicle': (11.848, -1.157), 'right_shoulder': (84.076, 17.015, 2.832),
+        'right_elbow': (35.824, 14.364), 'right_wrist': (-1.195, -20.952),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (13.788, 2.386, 0.7), 'spine_thoracic': (-8.777, -9.372, 1.175),
-        'neck': (0.225, -0.506, -29.551), 'right_clavicle': (16.432, -2.58),
-        'right_shoulder': (77.779, 23.979, 6.438), 'right_elbow': (38.929, 18.958),
-        'right_wrist': (-0.865, -11.305),
+        'right_clavicle': (27.825, 5.486), 'right_shoulder': (74.201, 35.935, 6.222),
+        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.307, -1.516),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (16.216, 3.04, 0.664), 'spine_thoracic': (-10.135, -10.0, 1.491),
-        'neck': (-0.381, -0.759, -30.621), 'head': (-0.564, -0.004),
-        'right_clavicle': (21.604, -3.685), 'right_shoulder': (75.462, 28.438, 8.513),
-        'right_elbow': (40.571, 21.944), 'right_wrist': (-0.853, -5.458),
+        'right_clavicle': (25.614, -3.017), 'right_shoulder': (72.411, 24.397, 4.917),
+        'right_elbow': (41.058, 17.665), 'right_wrist': (-2.553, -10.498),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (5.688, -1.319, 3.149), 'spine_thoracic': (-11.389, -5.129, 2.68),
-        'neck': (4.64, 1.181, -29.856), 'head': (4.845, 0.005), 'right_clavicle': (10.863, -1.814),
-        'right_shoulder': (70.515, 18.111, -0.016), 'right_elbow': (34.697, 11.904),
-        'right_wrist': (-2.627, -18.357),
+        'head': (-0.672, -0.002), 'right_clavicle': (14.663, -7.239),
+        'right_shoulder': (79.085, 5.266, -3.785), 'right_elbow': (44.272, 5.6),
+        'right_wrist': (-5.64, -29.553),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (5.929, 0.339, 3.358), 'spine_thoracic': (-6.892, -2.183, 2.883),
-        'neck': (1.86, 0.136, -28.769), 'head': (1.865, 0.001), 'right_clavicle': (4.727, 0.192),
-        'right_shoulder': (83.346, 13.428, -2.88), 'right_elbow': (33.008, 8.445),
-        'right_wrist': (-2.821, -27.351),
+        'right_clavicle': (5.608, -2.632), 'right_shoulder': (87.277, 7.326, -2.676),
+        'right_elbow': (37.427, 7.359), 'right_wrist': (-3.439, -29.859),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'spine_lumbar': (6.318, 1.023, 1.628), 'spine_thoracic': (-2.26, -1.742, 1.599),
-        'neck': (-0.446, -0.701, -26.327), 'head': (-0.598, -0.002),
-        'right_clavicle': (2.607, 0.844), 'right_shoulder': (90.184, 11.034, -0.437),
-        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.726, -29.12),
+        'right_clavicle': (4.445, -2.335), 'right_shoulder': (88.346, 9.222, -0.148),
+        'right_elbow': (36.12, 10.003), 'right_wrist': (-2.058, -28.377),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (10.576, 1.345, 1.241), 'spine_thoracic': (-7.424, -7.164, 1.384),
-        'neck': (0.864, -0.247, -28.817), 'head': (0.792, 0.0), 'right_clavicle': (11.053, -1.302),
-        'right_shoulder': (80.284, 19.118, 3.338), 'right_elbow': (36.553, 15.125),
-        'right_wrist': (-1.265, -18.28),
+        'right_clavicle': (23.153, 3.581), 'right_shoulder': (77.648, 31.538, 6.391),
+        'right_elbow': (33.719, 20.512), 'right_wrist': (-0.843, -6.193),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (16.117, 3.078, 0.522), 'spine_thoracic': (-9.843, -10.0, 1.323),
-        'neck': (-0.473, -0.789, -30.362), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.075, -3.582), 'right_shoulder': (76.127, 28.002, 8.496),
-        'right_elbow': (40.532, 21.8), 'right_wrist': (-0.798, -6.031),
+        'right_clavicle': (28.379, 3.672), 'right_shoulder': (72.919, 34.087, 5.965),
+        'right_elbow': (35.081, 20.598), 'right_wrist': (-1.7, -2.564),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (11.186, 0.897, 1.295), 'spine_thoracic': (-10.649, -8.564, 1.643),
-        'neck': (2.281, 0.284, -29.411), 'head': (2.314, 0.001), 'right_clavicle': (17.516, -3.084),
-        'right_shoulder': (71.211, 24.092, 6.135), 'right_elbow': (38.967, 18.677),
-        'right_wrist': (-1.351, -9.019),
+        'right_clavicle': (19.053, -8.638), 'right_shoulder': (75.065, 9.285, 0.067),
+        'right_elbow': (45.777, 9.894), 'right_wrist': (-4.512, -24.882),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (4.911, -0.491, 4.418), 'spine_thoracic': (-10.386, -2.615, 3.616),
-        'neck': (3.921, 0.897, -30.212), 'head': (4.07, 0.003), 'right_clavicle': (6.387, -0.404),
-        'right_shoulder': (76.913, 14.957, -4.117), 'right_elbow': (32.436, 7.647),
-        'right_wrist': (-3.551, -25.513),
+        'right_clavicle': (9.853, -3.804), 'right_shoulder': (83.949, 6.323, -4.637),
+        'right_elbow': (39.956, 5.313), 'right_wrist': (-5.058, -29.971),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'right_clavicle': (0.914, -2.202), 'right_shoulder': (90.574, 7.52, -0.248),
+        'right_elbow': (35.391, 9.506), 'right_wrist': (-1.659, -30.0),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (7.717, 0.935, 1.781), 'spine_thoracic': (-5.639, -4.306, 1.74),
-        'neck': (0.875, -0.221, -27.738), 'head': (0.812, 0.0), 'right_clavicle': (6.291, -0.008),
-        'right_shoulder': (84.214, 14.713, 0.438), 'right_elbow': (34.559, 11.654),
-        'right_wrist': (-1.888, -24.745),
+        'right_clavicle': (14.92, -0.107), 'right_shoulder': (82.321, 20.804, 3.913),
+        'right_elbow': (35.436, 16.13), 'right_wrist': (-0.978, -17.172),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (14.654, 2.715, 0.535), 'spine_thoracic': (-9.042, -9.761, 1.128),
-        'neck': (-0.053, -0.614, -29.645), 'head': (-0.203, -0.001),
-        'right_clavicle': (17.956, -2.925), 'right_shoulder': (77.423, 25.312, 7.284),
-        'right_elbow': (39.577, 20.026), 'right_wrist': (-0.794, -9.473),
+        'right_clavicle': (28.012, 5.547), 'right_shoulder': (74.038, 36.057, 6.173),
+        'right_elbow': (33.134, 21.17), 'right_wrist': (-1.337, -1.378),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (15.837, 2.895, 0.704), 'spine_thoracic': (-10.26, -10.0, 1.502),
-        'neck': (-0.115, -0.655, -30.519), 'head': (-0.275, -0.003),
-        'right_clavicle': (21.509, -3.689), 'right_shoulder': (74.779, 28.284, 8.44),
-        'right_elbow': (40.55, 21.824), 'right_wrist': (-0.905, -5.377),
+        'right_clavicle': (24.06, -5.246), 'right_shoulder': (72.672, 20.136, 4.014),
+        'right_elbow': (42.968, 15.923), 'right_wrist': (-2.968, -14.376),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (4.837, -1.32, 3.766), 'spine_thoracic': (-11.473, -4.185, 3.096),
-        'neck': (4.835, 1.25, -30.124), 'head': (5.052, 0.006), 'right_clavicle': (9.236, -1.403),
-        'right_shoulder': (71.505, 16.875, -1.873), 'right_elbow': (33.582, 10.013),
-        'right_wrist': (-3.083, -20.999),
+        'right_clavicle': (13.42, -6.259), 'right_shoulder': (80.438, 5.057, -4.516),
+        'right_elbow': (43.144, 4.981), 'right_wrist': (-5.751, -29.991),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.098, 0.595, 2.766), 'spine_thoracic': (-5.235, -1.997, 2.445),
-        'neck': (1.025, -0.167, -27.929), 'head': (0.972, 0.0), 'right_clavicle': (3.96, 0.425),
-        'right_shoulder': (85.897, 12.59, -2.068), 'right_elbow': (33.344, 8.983),
-        'right_wrist': (-2.434, -28.035),
+        'right_clavicle': (3.875, -2.428), 'right_shoulder': (88.514, 7.444, -1.798),
+        'right_elbow': (36.638, 8.15), 'right_wrist': (-2.784, -29.899),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.425, 1.007, 1.756), 'spine_thoracic': (-3.037, -2.125, 1.708),
-        'neck': (-0.089, -0.569, -26.619), 'head': (-0.216, -0.001),
-        'right_clavicle': (3.15, 0.754), 'right_shoulder': (88.955, 11.624, -0.465),
-        'right_elbow': (34.003, 10.147), 'right_wrist': (-1.867, -28.536),
+        'right_clavicle': (6.502, -2.216), 'right_shoulder': (87.142, 11.061, 0.558),
+        'right_elbow': (36.135, 11.057), 'right_wrist': (-1.859, -26.679),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (11.683, 1.662, 1.076), 'spine_thoracic': (-7.98, -8.043, 1.314),
-        'neck': (0.72, -0.309, -29.142), 'head': (0.634, 0.0), 'right_clavicle': (12.874, -1.748),
-        'right_shoulder': (79.197, 20.796, 4.384), 'right_elbow': (37.356, 16.415),
-        'right_wrist': (-1.107, -15.844),
+        'right_clavicle': (25.08, 4.507), 'right_shoulder': (76.462, 33.84, 6.699),
+        'right_elbow': (33.295, 21.156), 'right_wrist': (-0.921, -3.806),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (16.252, 3.083, 0.577), 'spine_thoracic': (-9.998, -10.0, 1.401),
-        'neck': (-0.47, -0.79, -30.498), 'head': (-0.658, -0.004),
-        'right_clavicle': (21.45, -3.653), 'right_shoulder': (75.824, 28.326, 8.563),
-        'right_elbow': (40.595, 21.95), 'right_wrist': (-0.82, -5.643),
+        'right_clavicle': (27.849, 1.727), 'right_shoulder': (72.571, 31.667, 5.854),
+        'right_elbow': (36.866, 20.024), 'right_wrist': (-1.921, -4.375),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (9.066, -0.078, 1.817), 'spine_thoracic': (-10.857, -7.442, 1.893),
-        'neck': (3.245, 0.655, -29.376), 'head': (3.35, 0.002), 'right_clavicle': (15.206, -2.677),
-        'right_shoulder': (70.383, 21.896, 4.307), 'right_elbow': (37.64, 16.542),
-        'right_wrist': (-1.687, -11.926),
+        'right_clavicle': (17.489, -8.566), 'right_shoulder': (76.304, 7.171, -1.362),
+        'right_elbow': (45.69, 8.136), 'right_wrist': (-5.008, -27.104),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (5.325, -0.173, 4.24), 'spine_thoracic': (-9.421, -2.421, 3.52),
-        'neck': (3.272, 0.653, -29.961), 'head': (3.375, 0.002), 'right_clavicle': (5.826, -0.175),
-        'right_shoulder': (79.015, 14.526, -4.075), 'right_elbow': (32.481, 7.62),
-        'right_wrist': (-3.416, -26.241),
+        'right_clavicle': (8.639, -3.288), 'right_shoulder': (84.952, 6.832, -4.097),
+        'right_elbow': (39.119, 5.919), 'right_wrist': (-4.591, -29.884),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'right_clavicle': (1.155, -2.217), 'right_shoulder': (90.42, 7.616, -0.247),
+        'right_elbow': (35.448, 9.52), 'right_wrist': (-1.696, -29.907),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (8.532, 0.98, 1.603), 'spine_thoracic': (-6.216, -5.21, 1.606),
-        'neck': (0.932, -0.206, -28.076), 'head': (0.871, 0.0), 'right_clavicle': (7.68, -0.405),
-        'right_shoulder': (82.913, 15.996, 1.301), 'right_elbow': (35.107, 12.674),
-        'right_wrist': (-1.679, -22.88),
+        'right_clavicle': (17.988, 1.066), 'right_shoulder': (80.576, 24.665, 4.922),
+        'right_elbow': (34.953, 17.832), 'right_wrist': (-0.854, -13.262),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (15.344, 2.971, 0.402), 'spine_thoracic': (-9.249, -9.993, 1.107),
-        'neck': (-0.294, -0.707, -29.708), 'head': (-0.465, -0.002),
-        'right_clavicle': (19.226, -3.209), 'right_shoulder': (77.182, 26.403, 7.965),
-        'right_elbow': (40.088, 20.895), 'right_wrist': (-0.748, -8.018),
+        'right_clavicle': (28.271, 5.429), 'right_shoulder': (73.736, 35.924, 5.994),
+        'right_elbow': (33.314, 21.011), 'right_wrist': (-1.415, -1.438),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (14.865, 2.541, 0.765), 'spine_thoracic': (-10.372, -9.908, 1.494),
-        'neck': (0.468, -0.422, -30.026), 'head': (0.356, -0.001),
-        'right_clavicle': (20.923, -3.633), 'right_shoulder': (73.732, 27.576, 8.193),
-        'right_elbow': (40.421, 21.401), 'right_wrist': (-0.985, -5.65),
+        'right_clavicle': (22.415, -7.023), 'right_shoulder': (73.179, 16.021, 2.88),
+        'right_elbow': (44.468, 13.973), 'right_wrist': (-3.443, -18.25),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (4.582, -1.184, 4.207), 'spine_thoracic': (-11.458, -3.452, 3.423),
-        'neck': (4.764, 1.217, -30.385), 'head': (4.974, 0.006), 'right_clavicle': (7.99, -1.023),
-        'right_shoulder': (73.031, 16.012, -3.223), 'right_elbow': (32.855, 8.653),
-        'right_wrist': (-3.406, -23.038),
+        'right_clavicle': (12.233, -5.33), 'right_shoulder': (81.678, 5.284, -4.689),
+        'right_elbow': (42.036, 4.992), 'right_wrist': (-5.655, -30.0),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.211, 0.827, 2.149), 'spine_thoracic': (-3.536, -1.795, 1.984),
-        'neck': (0.187, -0.472, -27.044), 'head': (0.077, -0.001), 'right_clavicle': (3.156, 0.66),
-        'right_shoulder': (88.385, 11.675, -1.213), 'right_elbow': (33.687, 9.541),
-        'right_wrist': (-2.037, -28.712),
+        'right_clavicle': (2.293, -2.291), 'right_shoulder': (89.618, 7.504, -0.973),
+        'right_elbow': (35.963, 8.874), 'right_wrist': (-2.183, -29.948),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (6.653, 0.982, 1.927), 'spine_thoracic': (-4.242, -2.775, 1.854),
-        'neck': (0.446, -0.373, -27.064), 'head': (0.355, 0.0), 'right_clavicle': (4.074, 0.586),
-        'right_shoulder': (87.012, 12.606, -0.486), 'right_elbow': (34.013, 10.347),
-        'right_wrist': (-2.055, -27.514),
+        'right_clavicle': (8.943, -1.848), 'right_shoulder': (85.739, 13.671, 1.646),
+        'right_elbow': (36.047, 12.588), 'right_wrist': (-1.52, -24.209),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (12.756, 2.011, 0.898), 'spine_thoracic': (-8.431, -8.779, 1.247),
-        'neck': (0.506, -0.395, -29.39), 'head': (0.402, -0.001),
-        'right_clavicle': (14.672, -2.174), 'right_shoulder': (78.357, 22.421, 5.418),
-        'right_elbow': (38.15, 17.695), 'right_wrist': (-0.976, -13.513),
+        'right_clavicle': (26.865, 5.165), 'right_shoulder': (75.029, 35.276, 6.445),
+        'right_elbow': (33.166, 21.169), 'right_wrist': (-1.153, -2.247),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
-        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
-        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
-        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
+        'right_clavicle': (26.928, -0.579), 'right_shoulder': (72.417, 28.388, 5.528),
+        'right_elbow': (38.929, 19.058), 'right_wrist': (-2.202, -7.042),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (7.163, -0.864, 2.458), 'spine_thoracic': (-11.115, -6.257, 2.251),
-        'neck': (4.063, 0.965, -29.551), 'head': (4.226, 0.004), 'right_clavicle': (12.916, -2.247),
-        'right_shoulder': (70.065, 19.832, 2.171), 'right_elbow': (36.138, 14.198),
-        'right_wrist': (-2.127, -15.174),
+        'right_clavicle': (16.019, -8.015), 'right_shoulder': (77.686, 5.75, -2.689),
+        'right_elbow': (45.121, 6.664), 'right_wrist': (-5.423, -28.696),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (5.666, 0.085, 3.87), 'spine_thoracic': (-8.281, -2.306, 3.259),
-        'neck': (2.604, 0.407, -29.47), 'head': (2.66, 0.001), 'right_clavicle': (5.313, 0.003),
-        'right_shoulder': (81.075, 14.038, -3.609), 'right_elbow': (32.694, 7.939),
-        'right_wrist': (-3.162, -26.787),
+        'right_clavicle': (7.267, -2.911), 'right_shoulder': (86.037, 7.153, -3.449),
+        'right_elbow': (38.285, 6.609), 'right_wrist': (-4.058, -29.841),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.994, -1.613, 1.56),
-        'neck': (-0.57, -0.747, -26.224), 'head': (-0.73, -0.002), 'right_clavicle': (2.424, 0.873),
-        'right_shoulder': (90.604, 10.834, -0.424), 'right_elbow': (34.0, 10.055),
-        'right_wrist': (-1.676, -29.316),
+        'right_clavicle': (2.31, -2.275), 'right_shoulder': (89.683, 8.103, -0.234),
+        'right_elbow': (35.726, 9.625), 'right_wrist': (-1.862, -29.439),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (9.494, 1.113, 1.42), 'spine_thoracic': (-6.816, -6.18, 1.484),
-        'neck': (0.931, -0.214, -28.442), 'head': (0.868, 0.0), 'right_clavicle': (9.274, -0.841),
-        'right_shoulder': (81.582, 17.473, 2.279), 'right_elbow': (35.78, 13.841),
-        'right_wrist': (-1.464, -20.704),
+        'right_clavicle': (20.771, 2.372), 'right_shoulder': (79.003, 28.357, 5.745),
+        'right_elbow': (34.339, 19.302), 'right_wrist': (-0.82, -9.474),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (15.823, 3.049, 0.437), 'spine_thoracic': (-9.549, -10.0, 1.182),
-        'neck': (-0.456, -0.778, -30.123), 'head': (-0.639, -0.004),
-        'right_clavicle': (20.31, -3.432), 'right_shoulder': (76.691, 27.339, 8.318),
-        'right_elbow': (40.377, 21.464), 'right_wrist': (-0.763, -6.837),
+        'right_clavicle': (28.381, 4.929), 'right_shoulder': (73.339, 35.411, 5.968),
+        'right_elbow': (33.88, 20.839), 'right_wrist': (-1.535, -1.718),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (13.254, 1.859, 0.936), 'spine_thoracic': (-10.492, -9.465, 1.515),
-        'neck': (1.292, -0.1, -29.667), 'head': (1.247, 0.0), 'right_clavicle': (19.55, -3.426),
-        'right_shoulder': (72.456, 26.126, 7.472), 'right_elbow': (39.933, 20.371),
-        'right_wrist': (-1.122, -6.814),
+        'right_clavicle': (20.735, -8.092), 'right_shoulder': (73.968, 12.381, 1.557),
+        'right_elbow': (45.347, 11.941), 'right_wrist': (-3.96, -21.789),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (4.649, -0.834, 4.468), 'spine_thoracic': (-11.058, -2.923, 3.637),
-        'neck': (4.415, 1.081, -30.455), 'head': (4.599, 0.005), 'right_clavicle': (7.068, -0.684),
-        'right_shoulder': (74.887, 15.422, -4.087), 'right_elbow': (32.441, 7.781),
-        'right_wrist': (-3.59, -24.514),
+        'right_clavicle': (11.074, -4.463), 'right_shoulder': (82.842, 5.821, -4.769),
+        'right_elbow': (40.928, 5.073), 'right_wrist': (-5.392, -30.0),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.274, 0.996, 1.674), 'spine_thoracic': (-2.234, -1.637, 1.628),
-        'neck': (-0.451, -0.704, -26.354), 'head': (-0.604, -0.002),
-        'right_clavicle': (2.535, 0.839), 'right_shoulder': (90.261, 10.963, -0.553),
-        'right_elbow': (33.949, 9.97), 'right_wrist': (-1.732, -29.226),
+        'right_clavicle': (1.137, -2.215), 'right_shoulder': (90.419, 7.52, -0.365),
+        'right_elbow': (35.483, 9.403), 'right_wrist': (-1.744, -29.991),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (7.061, 0.953, 1.942), 'spine_thoracic': (-5.094, -3.525, 1.868),
-        'neck': (0.776, -0.254, -27.452), 'head': (0.707, 0.0), 'right_clavicle': (5.15, 0.332),
-        'right_shoulder': (85.412, 13.665, -0.354), 'right_elbow': (34.108, 10.788),
-        'right_wrist': (-2.072, -26.228),
+        'right_clavicle': (11.798, -1.171), 'right_shoulder': (84.105, 16.955, 2.812),
+        'right_elbow': (35.829, 14.334), 'right_wrist': (-1.2, -21.012),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (13.772, 2.38, 0.703), 'spine_thoracic': (-8.772, -9.364, 1.176),
-        'neck': (0.23, -0.504, -29.549), 'right_clavicle': (16.404, -2.573),
-        'right_shoulder': (77.786, 23.955, 6.422), 'right_elbow': (38.917, 18.939),
-        'right_wrist': (-0.867, -11.339),
+        'right_clavicle': (27.816, 5.483), 'right_shoulder': (74.208, 35.929, 6.224),
+        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.305, -1.522),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (16.219, 3.041, 0.663), 'spine_thoracic': (-10.132, -10.0, 1.49),
-        'neck': (-0.384, -0.76, -30.62), 'head': (-0.566, -0.004),
-        'right_clavicle': (21.604, -3.684), 'right_shoulder': (75.47, 28.438, 8.515),
-        'right_elbow': (40.572, 21.945), 'right_wrist': (-0.852, -5.459),
+        'right_clavicle': (25.638, -2.976), 'right_shoulder': (72.408, 24.467, 4.929),
+        'right_elbow': (41.024, 17.691), 'right_wrist': (-2.547, -10.436),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (5.708, -1.315, 3.138), 'spine_thoracic': (-11.385, -5.146, 2.673),
-        'neck': (4.634, 1.179, -29.85), 'head': (4.838, 0.005), 'right_clavicle': (10.894, -1.821),
-        'right_shoulder': (70.503, 18.136, 0.018), 'right_elbow': (34.718, 11.939),
-        'right_wrist': (-2.619, -18.307),
+        'right_clavicle': (14.684, -7.255), 'right_shoulder': (79.062, 5.272, -3.768),
+        'right_elbow': (44.29, 5.616), 'right_wrist': (-5.637, -29.541),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (5.926, 0.334, 3.367), 'spine_thoracic': (-6.917, -2.185, 2.889),
-        'neck': (1.873, 0.141, -28.781), 'head': (1.879, 0.001), 'right_clavicle': (4.738, 0.188),
-        'right_shoulder': (83.306, 13.44, -2.892), 'right_elbow': (33.003, 8.437),
-        'right_wrist': (-2.826, -27.34),
+        'right_clavicle': (5.637, -2.636), 'right_shoulder': (87.256, 7.324, -2.69),
+        'right_elbow': (37.441, 7.346), 'right_wrist': (-3.45, -29.858),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'spine_lumbar': (6.317, 1.023, 1.627), 'spine_thoracic': (-2.251, -1.738, 1.597),
-        'neck': (-0.45, -0.702, -26.324), 'head': (-0.602, -0.002),
-        'right_clavicle': (2.601, 0.844), 'right_shoulder': (90.197, 11.028, -0.436),
-        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.724, -29.126),
+        'right_clavicle': (4.407, -2.335), 'right_shoulder': (88.369, 9.198, -0.15),
+        'right_elbow': (36.117, 9.993), 'right_wrist': (-2.057, -28.4),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (10.557, 1.34, 1.244), 'spine_thoracic': (-7.414, -7.148, 1.386),
-        'neck': (0.866, -0.246, -28.811), 'head': (0.794, 0.0), 'right_clavicle': (11.023, -1.294),
-        'right_shoulder': (80.304, 19.09, 3.321), 'right_elbow': (36.54, 15.103),
-        'right_wrist': (-1.268, -18.321),
+        'right_clavicle': (23.119, 3.563), 'right_shoulder': (77.667, 31.492, 6.381),
+        'right_elbow': (33.729, 20.491), 'right_wrist': (-0.842, -6.24),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (16.114, 3.078, 0.521), 'spine_thoracic': (-9.839, -10.0, 1.321),
-        'neck': (-0.473, -0.789, -30.359), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.066, -3.58), 'right_shoulder': (76.134, 27.993, 8.494),
-        'right_elbow': (40.53, 21.796), 'right_wrist': (-0.797, -6.041),
+        'right_clavicle': (28.383, 3.699), 'right_shoulder': (72.926, 34.117, 5.966),
+        'right_elbow': (35.057, 20.605), 'right_wrist': (-1.697, -2.542),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (11.222, 0.914, 1.287), 'spine_thoracic': (-10.646, -8.582, 1.64),
-        'neck': (2.264, 0.277, -29.413), 'head': (2.295, 0.001), 'right_clavicle': (17.554, -3.09),
-        'right_shoulder': (71.23, 24.129, 6.163), 'right_elbow': (38.987, 18.71),
-        'right_wrist': (-1.346, -8.974),
+        'right_clavicle': (19.081, -8.633), 'right_shoulder': (75.045, 9.329, 0.092),
+        'right_elbow': (45.773, 9.926), 'right_wrist': (-4.504, -24.837),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (4.904, -0.497, 4.421), 'spine_thoracic': (-10.4, -2.619, 3.617),
-        'neck': (3.931, 0.901, -30.216), 'head': (4.081, 0.003), 'right_clavicle': (6.396, -0.408),
-        'right_shoulder': (76.878, 14.964, -4.117), 'right_elbow': (32.435, 7.648),
-        'right_wrist': (-3.552, -25.5),
+        'right_clavicle': (9.873, -3.813), 'right_shoulder': (83.932, 6.314, -4.644),
+        'right_elbow': (39.971, 5.305), 'right_wrist': (-5.065, -29.972),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'right_clavicle': (0.914, -2.202), 'right_shoulder': (90.574, 7.52, -0.248),
+        'right_elbow': (35.391, 9.506), 'right_wrist': (-1.659, -30.0),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (7.704, 0.935, 1.784), 'spine_thoracic': (-5.629, -4.291, 1.742),
-        'neck': (0.873, -0.222, -27.732), 'head': (0.81, 0.0), 'right_clavicle': (6.27, -0.002),
-        'right_shoulder': (84.236, 14.693, 0.425), 'right_elbow': (34.551, 11.639),
-        'right_wrist': (-1.892, -24.773),
+        'right_clavicle': (14.868, -0.126), 'right_shoulder': (82.351, 20.739, 3.895),
+        'right_elbow': (35.443, 16.1), 'right_wrist': (-0.981, -17.238),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (14.641, 2.71, 0.537), 'spine_thoracic': (-9.038, -9.756, 1.128),
-        'neck': (-0.048, -0.612, -29.644), 'head': (-0.198, -0.001),
-        'right_clavicle': (17.933, -2.92), 'right_shoulder': (77.428, 25.292, 7.271),
-        'right_elbow': (39.567, 20.009), 'right_wrist': (-0.795, -9.501),
+        'right_clavicle': (28.012, 5.547), 'right_shoulder': (74.038, 36.057, 6.173),
+        'right_elbow': (33.134, 21.17), 'right_wrist': (-1.337, -1.378),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (15.848, 2.899, 0.704), 'spine_thoracic': (-10.258, -10.0, 1.502),
-        'neck': (-0.122, -0.658, -30.523), 'head': (-0.283, -0.003),
-        'right_clavicle': (21.513, -3.689), 'right_shoulder': (74.794, 28.29, 8.441),
-        'right_elbow': (40.551, 21.827), 'right_wrist': (-0.904, -5.378),
+        'right_clavicle': (24.087, -5.213), 'right_shoulder': (72.667, 20.206, 4.031),
+        'right_elbow': (42.94, 15.954), 'right_wrist': (-2.96, -14.312),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (4.848, -1.322, 3.756), 'spine_thoracic': (-11.472, -4.199, 3.089),
-        'neck': (4.833, 1.25, -30.119), 'head': (5.05, 0.006), 'right_clavicle': (9.26, -1.41),
-        'right_shoulder': (71.482, 16.893, -1.845), 'right_elbow': (33.599, 10.042),
-        'right_wrist': (-3.076, -20.959),
+        'right_clavicle': (13.441, -6.274), 'right_shoulder': (80.416, 5.058, -4.51),
+        'right_elbow': (43.162, 4.984), 'right_wrist': (-5.75, -29.989),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.095, 0.591, 2.777), 'spine_thoracic': (-5.265, -2.001, 2.453),
-        'neck': (1.04, -0.162, -27.944), 'head': (0.988, 0.0), 'right_clavicle': (3.974, 0.421),
-        'right_shoulder': (85.853, 12.606, -2.083), 'right_elbow': (33.338, 8.974),
-        'right_wrist': (-2.441, -28.023),
+        'right_clavicle': (3.903, -2.43), 'right_shoulder': (88.493, 7.442, -1.812),
+        'right_elbow': (36.651, 8.137), 'right_wrist': (-2.795, -29.898),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.423, 1.008, 1.753), 'spine_thoracic': (-3.02, -2.116, 1.705),
-        'neck': (-0.097, -0.572, -26.612), 'head': (-0.225, -0.001),
-        'right_clavicle': (3.137, 0.757), 'right_shoulder': (88.983, 11.61, -0.464),
-        'right_elbow': (34.003, 10.145), 'right_wrist': (-1.864, -28.55),
+        'right_clavicle': (6.467, -2.22), 'right_shoulder': (87.162, 11.023, 0.539),
+        'right_elbow': (36.135, 11.033), 'right_wrist': (-1.865, -26.714),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (11.665, 1.656, 1.079), 'spine_thoracic': (-7.971, -8.029, 1.315),
-        'neck': (0.723, -0.307, -29.137), 'head': (0.638, 0.0), 'right_clavicle': (12.843, -1.741),
-        'right_shoulder': (79.213, 20.768, 4.366), 'right_elbow': (37.343, 16.393),
-        'right_wrist': (-1.109, -15.885),
+        'right_clavicle': (25.046, 4.493), 'right_shoulder': (76.486, 33.808, 6.7),
+        'right_elbow': (33.299, 21.156), 'right_wrist': (-0.918, -3.84),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (16.25, 3.083, 0.576), 'spine_thoracic': (-9.997, -10.0, 1.4),
-        'neck': (-0.47, -0.79, -30.497), 'head': (-0.658, -0.004),
-        'right_clavicle': (21.446, -3.653), 'right_shoulder': (75.827, 28.323, 8.563),
-        'right_elbow': (40.594, 21.948), 'right_wrist': (-0.819, -5.647),
+        'right_clavicle': (27.86, 1.763), 'right_shoulder': (72.575, 31.714, 5.857),
+        'right_elbow': (36.834, 20.036), 'right_wrist': (-1.917, -4.338),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (9.1, -0.062, 1.807), 'spine_thoracic': (-10.853, -7.461, 1.888),
-        'neck': (3.23, 0.649, -29.374), 'head': (3.333, 0.002), 'right_clavicle': (15.245, -2.684),
-        'right_shoulder': (70.392, 21.932, 4.341), 'right_elbow': (37.664, 16.58),
-        'right_wrist': (-1.68, -11.874),
+        'right_clavicle': (17.514, -8.573), 'right_shoulder': (76.282, 7.203, -1.338),
+        'right_elbow': (45.697, 8.165), 'right_wrist': (-5.0, -27.07),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (5.319, -0.178, 4.244), 'spine_thoracic': (-9.438, -2.424, 3.522),
-        'neck': (3.283, 0.657, -29.966), 'head': (3.386, 0.002), 'right_clavicle': (5.835, -0.179),
-        'right_shoulder': (78.98, 14.534, -4.077), 'right_elbow': (32.479, 7.619),
-        'right_wrist': (-3.418, -26.23),
+        'right_clavicle': (8.66, -3.295), 'right_shoulder': (84.935, 6.825, -4.108),
+        'right_elbow': (39.133, 5.908), 'right_wrist': (-4.6, -29.885),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'right_clavicle': (1.145, -2.216), 'right_shoulder': (90.426, 7.612, -0.247),
+        'right_elbow': (35.446, 9.52), 'right_wrist': (-1.695, -29.911),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (8.517, 0.978, 1.606), 'spine_thoracic': (-6.206, -5.194, 1.608),
-        'neck': (0.932, -0.206, -28.07), 'head': (0.871, 0.0), 'right_clavicle': (7.655, -0.398),
-        'right_shoulder': (82.935, 15.972, 1.285), 'right_elbow': (35.097, 12.655),
-        'right_wrist': (-1.683, -22.914),
+        'right_clavicle': (17.938, 1.044), 'right_shoulder': (80.604, 24.6, 4.907),
+        'right_elbow': (34.963, 17.805), 'right_wrist': (-0.855, -13.329),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (15.334, 2.969, 0.403), 'spine_thoracic': (-9.245, -9.991, 1.108),
-        'neck': (-0.291, -0.706, -29.706), 'head': (-0.461, -0.002),
-        'right_clavicle': (19.206, -3.205), 'right_shoulder': (77.187, 26.386, 7.956),
-        'right_elbow': (40.082, 20.883), 'right_wrist': (-0.749, -8.04),
+        'right_clavicle': (28.267, 5.433), 'right_shoulder': (73.742, 35.929, 5.997),
+        'right_elbow': (33.308, 21.014), 'right_wrist': (-1.413, -1.436),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (14.888, 2.549, 0.763), 'spine_thoracic': (-10.371, -9.912, 1.495),
-        'neck': (0.456, -0.427, -30.032), 'head': (0.343, -0.001),
-        'right_clavicle': (20.941, -3.636), 'right_shoulder': (73.752, 27.595, 8.201),
-        'right_elbow': (40.426, 21.413), 'right_wrist': (-0.983, -5.637),
+        'right_clavicle': (22.443, -6.996), 'right_shoulder': (73.168, 16.089, 2.902),
+        'right_elbow': (44.445, 14.008), 'right_wrist': (-3.435, -18.185),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (4.581, -1.188, 4.201), 'spine_thoracic': (-11.461, -3.463, 3.418),
-        'neck': (4.769, 1.219, -30.381), 'head': (4.979, 0.006), 'right_clavicle': (8.008, -1.029),
-        'right_shoulder': (73.003, 16.023, -3.204), 'right_elbow': (32.864, 8.673),
-        'right_wrist': (-3.402, -23.009),
+        'right_clavicle': (12.252, -5.346), 'right_shoulder': (81.658, 5.276, -4.687),
+        'right_elbow': (42.055, 4.992), 'right_wrist': (-5.658, -30.0),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.21, 0.823, 2.158), 'spine_thoracic': (-3.563, -1.798, 1.991),
-        'neck': (0.2, -0.467, -27.058), 'head': (0.091, -0.001), 'right_clavicle': (3.168, 0.656),
-        'right_shoulder': (88.346, 11.69, -1.227), 'right_elbow': (33.681, 9.532),
-        'right_wrist': (-2.043, -28.702),
+        'right_clavicle': (2.317, -2.293), 'right_shoulder': (89.601, 7.503, -0.986),
+        'right_elbow': (35.973, 8.863), 'right_wrist': (-2.193, -29.948),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (6.648, 0.982, 1.925), 'spine_thoracic': (-4.221, -2.762, 1.852),
-        'neck': (0.437, -0.376, -27.057), 'head': (0.346, 0.0), 'right_clavicle': (4.056, 0.589),
-        'right_shoulder': (87.046, 12.587, -0.486), 'right_elbow': (34.013, 10.342),
-        'right_wrist': (-2.052, -27.535),
+        'right_clavicle': (8.898, -1.856), 'right_shoulder': (85.765, 13.621, 1.627),
+        'right_elbow': (36.049, 12.56), 'right_wrist': (-1.526, -24.257),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (12.738, 2.005, 0.901), 'spine_thoracic': (-8.424, -8.768, 1.248),
-        'neck': (0.511, -0.393, -29.386), 'head': (0.407, 0.0), 'right_clavicle': (14.642, -2.167),
-        'right_shoulder': (78.368, 22.394, 5.4), 'right_elbow': (38.137, 17.674),
-        'right_wrist': (-0.978, -13.551),
+        'right_clavicle': (26.841, 5.157), 'right_shoulder': (75.05, 35.259, 6.45),
+        'right_elbow': (33.167, 21.168), 'right_wrist': (-1.149, -2.266),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
-        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
-        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.406, 8.578),
-        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
+        'right_clavicle': (26.948, -0.538), 'right_shoulder': (72.418, 28.452, 5.537),
+        'right_elbow': (38.892, 19.079), 'right_wrist': (-2.197, -6.988),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (7.19, -0.855, 2.447), 'spine_thoracic': (-11.11, -6.276, 2.245),
-        'neck': (4.052, 0.961, -29.548), 'head': (4.215, 0.004), 'right_clavicle': (12.951, -2.255),
-        'right_shoulder': (70.065, 19.863, 2.207), 'right_elbow': (36.162, 14.236),
-        'right_wrist': (-2.119, -15.121),
+        'right_clavicle': (16.043, -8.025), 'right_shoulder': (77.663, 5.764, -2.67),
+        'right_elbow': (45.132, 6.684), 'right_wrist': (-5.418, -28.677),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (5.661, 0.081, 3.878), 'spine_thoracic': (-8.303, -2.307, 3.265),
-        'neck': (2.616, 0.411, -29.48), 'head': (2.673, 0.001), 'right_clavicle': (5.322, 0.0),
-        'right_shoulder': (81.039, 14.047, -3.621), 'right_elbow': (32.689, 7.931),
-        'right_wrist': (-3.167, -26.779),
+        'right_clavicle': (7.291, -2.916), 'right_shoulder': (86.017, 7.15, -3.46),
+        'right_elbow': (38.299, 6.598), 'right_wrist': (-4.068, -29.841),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
-        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.993, -1.613, 1.56),
-        'neck': (-0.57, -0.747, -26.224), 'head': (-0.731, -0.002),
-        'right_clavicle': (2.423, 0.873), 'right_shoulder': (90.606, 10.834, -0.424),
-        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.675, -29.317),
+        'right_clavicle': (2.281, -2.274), 'right_shoulder': (89.701, 8.091, -0.234),
+        'right_elbow': (35.719, 9.622), 'right_wrist': (-1.858, -29.451),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (9.477, 1.11, 1.423), 'spine_thoracic': (-6.806, -6.164, 1.486),
-        'neck': (0.932, -0.213, -28.436), 'head': (0.868, 0.0), 'right_clavicle': (9.246, -0.834),
-        'right_shoulder': (81.604, 17.446, 2.262), 'right_elbow': (35.767, 13.82),
-        'right_wrist': (-1.467, -20.742),
+        'right_clavicle': (20.727, 2.35), 'right_shoulder': (79.027, 28.299, 5.732),
+        'right_elbow': (34.35, 19.28), 'right_wrist': (-0.82, -9.534),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (15.816, 3.048, 0.436), 'spine_thoracic': (-9.544, -10.0, 1.18),
-        'neck': (-0.455, -0.778, -30.118), 'head': (-0.639, -0.004),
-        'right_clavicle': (20.294, -3.429), 'right_shoulder': (76.701, 27.325, 8.313),
-        'right_elbow': (40.374, 21.456), 'right_wrist': (-0.763, -6.854),
+        'right_clavicle': (28.38, 4.945), 'right_shoulder': (73.347, 35.427, 5.968),
+        'right_elbow': (33.864, 20.842), 'right_wrist': (-1.532, -1.708),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (13.286, 1.873, 0.932), 'spine_thoracic': (-10.49, -9.477, 1.514),
-        'neck': (1.276, -0.106, -29.672), 'head': (1.23, 0.0), 'right_clavicle': (19.58, -3.431),
-        'right_shoulder': (72.479, 26.157, 7.49), 'right_elbow': (39.946, 20.394),
-        'right_wrist': (-1.119, -6.784),
+        'right_clavicle': (20.763, -8.08), 'right_shoulder': (73.953, 12.438, 1.581),
+        'right_elbow': (45.337, 11.975), 'right_wrist': (-3.951, -21.734),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (4.648, -0.84, 4.466), 'spine_thoracic': (-11.066, -2.93, 3.636),
-        'neck': (4.421, 1.084, -30.458), 'head': (4.606, 0.005), 'right_clavicle': (7.081, -0.689),
-        'right_shoulder': (74.854, 15.431, -4.081), 'right_elbow': (32.444, 7.788),
-        'right_wrist': (-3.589, -24.494),
+        'right_clavicle': (11.094, -4.476), 'right_shoulder': (82.823, 5.812, -4.768),
+        'right_elbow': (40.946, 5.072), 'right_wrist': (-5.397, -30.0),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.273, 0.994, 1.679), 'spine_thoracic': (-2.25, -1.639, 1.632),
-        'neck': (-0.444, -0.701, -26.363), 'head': (-0.596, -0.002),
-        'right_clavicle': (2.543, 0.837), 'right_shoulder': (90.238, 10.972, -0.561),
-        'right_elbow': (33.946, 9.965), 'right_wrist': (-1.736, -29.22),
+        'right_clavicle': (1.151, -2.216), 'right_shoulder': (90.41, 7.52, -0.373),
+        'right_elbow': (35.488, 9.397), 'right_wrist': (-1.749, -29.991),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (7.052, 0.953, 1.944), 'spine_thoracic': (-5.085, -3.512, 1.87),
-        'neck': (0.773, -0.255, -27.447), 'head': (0.705, 0.0), 'right_clavicle': (5.132, 0.337),
-        'right_shoulder': (85.433, 13.648, -0.363), 'right_elbow': (34.103, 10.777),
-        'right_wrist': (-2.074, -26.25),
+        'right_clavicle': (11.747, -1.185), 'right_shoulder': (84.134, 16.895, 2.792),
+        'right_elbow': (35.834, 14.303), 'right_wrist': (-1.205, -21.07),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (13.756, 2.374, 0.706), 'spine_thoracic': (-8.767, -9.356, 1.177),
-        'neck': (0.235, -0.502, -29.547), 'right_clavicle': (16.376, -2.567),
-        'right_shoulder': (77.793, 23.931, 6.407), 'right_elbow': (38.905, 18.919),
-        'right_wrist': (-0.868, -11.373),
+        'right_clavicle': (27.808, 5.481), 'right_shoulder': (74.216, 35.923, 6.226),
+        'right_elbow': (33.137, 21.17), 'right_wrist': (-1.304, -1.528),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (16.222, 3.043, 0.661), 'spine_thoracic': (-10.13, -10.0, 1.489),
-        'neck': (-0.387, -0.761, -30.619), 'head': (-0.569, -0.004),
-        'right_clavicle': (21.603, -3.684), 'right_shoulder': (75.479, 28.437, 8.516),
-        'right_elbow': (40.573, 21.947), 'right_wrist': (-0.852, -5.461),
+        'right_clavicle': (25.662, -2.936), 'right_shoulder': (72.406, 24.537, 4.942),
+        'right_elbow': (40.989, 17.718), 'right_wrist': (-2.541, -10.373),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (5.727, -1.31, 3.127), 'spine_thoracic': (-11.382, -5.164, 2.666),
-        'neck': (4.627, 1.176, -29.845), 'head': (4.831, 0.005), 'right_clavicle': (10.925, -1.828),
-        'right_shoulder': (70.491, 18.161, 0.053), 'right_elbow': (34.74, 11.975),
-        'right_wrist': (-2.611, -18.258),
+        'right_clavicle': (14.705, -7.271), 'right_shoulder': (79.038, 5.278, -3.751),
+        'right_elbow': (44.308, 5.632), 'right_wrist': (-5.634, -29.529),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (5.922, 0.33, 3.376), 'spine_thoracic': (-6.942, -2.188, 2.896),
-        'neck': (1.886, 0.145, -28.794), 'head': (1.892, 0.001), 'right_clavicle': (4.749, 0.185),
-        'right_shoulder': (83.266, 13.451, -2.904), 'right_elbow': (32.998, 8.429),
-        'right_wrist': (-2.832, -27.33),
+        'right_clavicle': (5.666, -2.64), 'right_shoulder': (87.235, 7.321, -2.704),
+        'right_elbow': (37.455, 7.333), 'right_wrist': (-3.461, -29.858),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
-        'spine_lumbar': (6.316, 1.023, 1.625), 'spine_thoracic': (-2.241, -1.733, 1.596),
-        'neck': (-0.455, -0.704, -26.319), 'head': (-0.608, -0.002),
-        'right_clavicle': (2.594, 0.846), 'right_shoulder': (90.214, 11.02, -0.436),
-        'right_elbow': (34.001, 10.072), 'right_wrist': (-1.722, -29.134),
+        'right_clavicle': (3.742, -2.324), 'right_shoulder': (88.779, 8.806, -0.187),
+        'right_elbow': (36.029, 9.846), 'right_wrist': (-2.017, -28.77),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (10.524, 1.332, 1.249), 'spine_thoracic': (-7.396, -7.119, 1.388),
-        'neck': (0.869, -0.245, -28.8), 'head': (0.797, 0.0), 'right_clavicle': (10.968, -1.28),
-        'right_shoulder': (80.342, 19.039, 3.288), 'right_elbow': (36.516, 15.063),
-        'right_wrist': (-1.274, -18.397),
+        'right_clavicle': (21.724, 2.851), 'right_shoulder': (78.464, 29.638, 6.011),
+        'right_elbow': (34.1, 19.789), 'right_wrist': (-0.825, -8.152),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (16.106, 3.077, 0.518), 'spine_thoracic': (-9.83, -10.0, 1.317),
-        'neck': (-0.473, -0.789, -30.351), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.044, -3.576), 'right_shoulder': (76.152, 27.974, 8.489),
-        'right_elbow': (40.526, 21.787), 'right_wrist': (-0.796, -6.064),
+        'spine_lumbar': (8.55, 1.364, 1.21), 'spine_thoracic': (-3.702, -3.662, 1.404),
+        'neck': (-0.509, -0.74, -27.081), 'right_clavicle': (28.433, 4.747),
+        'right_shoulder': (73.246, 35.233, 5.966), 'right_elbow': (34.079, 20.812),
+        'right_wrist': (-1.567, -1.863),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (11.234, 0.893, 1.229), 'spine_thoracic': (-10.555, -8.617, 1.593),
-        'neck': (2.234, 0.266, -29.398), 'head': (2.263, 0.001), 'right_clavicle': (17.605, -3.126),
-        'right_shoulder': (71.325, 24.148, 6.233), 'right_elbow': (38.959, 18.784),
-        'right_wrist': (-1.316, -9.048),
+        'spine_lumbar': (7.12, 1.055, 1.315), 'spine_thoracic': (-2.524, -2.487, 1.392),
+        'neck': (-0.547, -0.743, -26.505), 'head': (-0.709, -0.002),
+        'right_clavicle': (20.703, -6.627), 'right_shoulder': (74.587, 12.535, 0.799),
+        'right_elbow': (44.61, 11.274), 'right_wrist': (-4.183, -23.33),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (4.691, -0.711, 4.278), 'spine_thoracic': (-10.13, -2.639, 3.484),
-        'neck': (3.955, 0.911, -30.151), 'head': (4.107, 0.003), 'right_clavicle': (6.343, -0.501),
-        'right_shoulder': (77.08, 14.801, -4.09), 'right_elbow': (32.169, 7.66),
-        'right_wrist': (-3.489, -26.122),
+        'spine_lumbar': (6.143, 0.851, 1.394), 'spine_thoracic': (-1.704, -1.654, 1.386),
+        'neck': (-0.59, -0.752, -26.103), 'right_clavicle': (11.533, -1.085),
+        'right_shoulder': (83.952, 9.213, -4.868), 'right_elbow': (38.557, 5.748),
+        'right_wrist': (-5.108, -29.99),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.391913, duration=0.072)
     human.KeyJoints(12.4, {
-        'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-0.57, -0.745, -26.12), 'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
-        'right_shoulder': (90.86, 10.606, -0.379), 'right_elbow': (33.717, 10.07),
-        'right_wrist': (-1.596, -30.0),
+        'spine_lumbar': (6.038, 0.806, 1.411), 'neck': (-0.57, -0.745, -26.12),
+        'right_clavicle': (2.313, 0.78), 'right_shoulder': (90.86, 10.606, -0.379),
+        'right_elbow': (33.717, 10.07), 'right_wrist': (-1.596, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.336746)
@@ -1480,616 +1296,433 @@ def remove_access_panel_cad():
         'right_wrist': (-6.457, -3.791),
     })
     human.KeyJoints(24.2, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (17.513, 33.356, -16.785),
-        'right_elbow': (37.585, 2.811), 'right_wrist': (-6.586, -5.14),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'right_clavicle': (2.794, 7.882),
+        'right_shoulder': (17.513, 33.356, -16.785), 'right_elbow': (37.585, 2.811),
+        'right_wrist': (-6.586, -5.14),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.216071, duration=0.072)
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (6.95, -13.858, 9.605), 'spine_thoracic': (-8.555, -4.486, 9.156),
-        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.815, 7.883),
-        'right_shoulder': (17.578, 33.398, -16.747), 'right_elbow': (37.587, 2.841),
-        'right_wrist': (-6.575, -5.092),
+        'spine_lumbar': (6.962, -13.822, 9.604), 'spine_thoracic': (-8.557, -4.49, 9.157),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.72, 7.941),
+        'right_shoulder': (17.604, 33.544, -16.772), 'right_elbow': (37.499, 2.844),
+        'right_wrist': (-6.563, -4.852),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (7.85, -11.603, 9.292), 'spine_thoracic': (-8.424, -5.683, 9.156),
-        'neck': (34.436, -2.178, -40.66), 'head': (14.543, -1.248),
-        'right_clavicle': (5.767, 7.663), 'right_shoulder': (17.505, 33.499, -12.982),
-        'right_elbow': (37.858, 6.187), 'right_wrist': (-6.229, -2.684),
+        'spine_lumbar': (7.723, -11.476, 9.76), 'spine_thoracic': (-8.704, -4.19, 9.291),
+        'neck': (34.479, -2.423, -41.511), 'head': (14.445, -1.262),
+        'right_clavicle': (6.129, 9.157), 'right_shoulder': (16.103, 38.917, -10.822),
+        'right_elbow': (34.675, 8.981), 'right_wrist': (-6.273, 3.321),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (13.236, -5.947, 8.625), 'spine_thoracic': (-7.0, -9.452, 9.643),
-        'neck': (33.108, -3.476, -42.091), 'head': (13.161, -1.519),
-        'right_clavicle': (16.324, 8.364), 'right_shoulder': (15.213, 41.671, -2.096),
-        'right_elbow': (42.214, 19.308), 'right_wrist': (-6.725, 10.464),
+        'spine_lumbar': (9.645, -5.703, 10.196), 'spine_thoracic': (-9.523, -3.797, 9.695),
+        'neck': (33.406, -3.164, -41.679), 'head': (13.473, -1.45),
+        'right_clavicle': (19.958, 12.221), 'right_shoulder': (13.005, 45.347, 3.094),
+        'right_elbow': (38.386, 25.674), 'right_wrist': (-9.006, 8.391),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (13.883, -8.656, 8.102), 'spine_thoracic': (-5.86, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.221), 'head': (13.465, -1.512),
-        'right_clavicle': (19.692, 8.664), 'right_shoulder': (13.482, 43.445, 1.175),
-        'right_elbow': (41.341, 23.505), 'right_wrist': (-7.065, 10.048),
+        'right_clavicle': (22.486, 8.92), 'right_shoulder': (13.207, 41.127, 5.112),
+        'right_elbow': (41.678, 26.101), 'right_wrist': (-8.694, 6.755),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (8.821, -1.252, 9.094), 'spine_thoracic': (-9.526, -4.384, 9.192),
-        'neck': (32.007, -3.055, -38.179), 'head': (12.616, -1.53),
-        'right_clavicle': (13.193, 6.869), 'right_shoulder': (18.662, 35.256, -2.844),
-        'right_elbow': (43.602, 15.007), 'right_wrist': (-5.194, 11.491),
+        'right_clavicle': (4.832, 6.346), 'right_shoulder': (21.092, 39.239, -8.736),
+        'right_elbow': (36.738, 7.712), 'right_wrist': (-3.753, 18.86),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (10.751, -0.311, 10.815), 'spine_thoracic': (-10.613, -2.114, 10.101),
-        'neck': (32.277, -3.82, -41.178), 'head': (12.384, -1.57), 'right_clavicle': (7.446, 7.998),
-        'right_shoulder': (20.729, 37.107, -11.16), 'right_elbow': (44.467, 7.989),
-        'right_wrist': (-5.74, 10.509),
+        'right_clavicle': (-1.314, 11.734), 'right_shoulder': (21.324, 45.102, -15.594),
+        'right_elbow': (34.365, 4.962), 'right_wrist': (-4.965, 19.189),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.094, -1.247, 10.772), 'spine_thoracic': (-10.114, -2.493, 10.04),
-        'neck': (32.397, -3.903, -41.735), 'head': (12.43, -1.575),
-        'right_clavicle': (6.406, 8.442), 'right_shoulder': (19.856, 38.468, -12.4),
-        'right_elbow': (45.064, 7.579), 'right_wrist': (-6.163, 10.992),
+        'right_clavicle': (-0.809, 12.018), 'right_shoulder': (20.303, 46.107, -15.034),
+        'right_elbow': (34.303, 6.165), 'right_wrist': (-5.176, 19.45),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.883, -2.782, 9.389), 'spine_thoracic': (-8.334, -7.662, 9.834),
-        'neck': (32.56, -3.686, -41.495), 'head': (12.682, -1.565),
-        'right_clavicle': (13.865, 8.21), 'right_shoulder': (17.211, 40.624, -4.646),
-        'right_elbow': (43.57, 16.031), 'right_wrist': (-6.354, 11.962),
+        'right_clavicle': (12.841, 12.208), 'right_shoulder': (14.506, 47.341, -2.351),
+        'right_elbow': (35.181, 19.628), 'right_wrist': (-7.635, 14.901),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (13.883, -8.501, 8.118), 'spine_thoracic': (-5.908, -10.0, 9.675),
-        'neck': (33.509, -3.508, -43.169), 'head': (13.441, -1.514),
-        'right_clavicle': (19.517, 8.663), 'right_shoulder': (13.543, 43.427, 1.001),
-        'right_elbow': (41.433, 23.317), 'right_wrist': (-7.063, 10.152),
+        'right_clavicle': (22.149, 12.108), 'right_shoulder': (13.147, 44.214, 4.813),
+        'right_elbow': (38.876, 27.024), 'right_wrist': (-8.932, 6.675),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (10.434, -5.311, 8.261), 'spine_thoracic': (-7.409, -7.848, 9.2),
-        'neck': (32.61, -3.054, -39.644), 'head': (13.054, -1.518),
-        'right_clavicle': (16.909, 7.708), 'right_shoulder': (15.414, 38.95, 0.531),
-        'right_elbow': (42.954, 20.334), 'right_wrist': (-6.107, 11.66),
+        'right_clavicle': (13.636, 4.892), 'right_shoulder': (16.289, 38.708, -1.25),
+        'right_elbow': (40.646, 16.362), 'right_wrist': (-5.974, 14.898),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (9.887, 0.951, 10.638), 'spine_thoracic': (-11.124, -1.864, 9.995),
-        'neck': (32.058, -3.574, -39.874), 'head': (12.356, -1.556),
-        'right_clavicle': (9.202, 7.237), 'right_shoulder': (21.586, 34.818, -8.599),
-        'right_elbow': (43.642, 9.18), 'right_wrist': (-5.061, 10.016),
+        'right_clavicle': (0.348, 10.109), 'right_shoulder': (22.578, 42.946, -13.357),
+        'right_elbow': (33.868, 4.955), 'right_wrist': (-3.817, 19.618),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
-        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
-        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.974, 12.186), 'right_shoulder': (20.44, 45.751, -16.63),
+        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.617, 18.645),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (11.875, -1.092, 10.176), 'spine_thoracic': (-9.589, -4.844, 9.959),
-        'neck': (32.315, -3.784, -41.168), 'head': (12.435, -1.569),
-        'right_clavicle': (10.032, 8.191), 'right_shoulder': (19.117, 38.865, -8.464),
-        'right_elbow': (44.34, 11.434), 'right_wrist': (-6.029, 11.586),
+        'right_clavicle': (5.063, 12.229), 'right_shoulder': (17.271, 48.07, -8.876),
+        'right_elbow': (33.111, 12.609), 'right_wrist': (-6.021, 19.546),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (13.773, -6.772, 8.382), 'spine_thoracic': (-6.508, -9.907, 9.664),
-        'neck': (33.228, -3.543, -42.611), 'head': (13.223, -1.526),
-        'right_clavicle': (17.968, 8.56), 'right_shoulder': (14.403, 42.92, -0.549),
-        'right_elbow': (42.18, 21.419), 'right_wrist': (-6.935, 10.997),
+        'right_clavicle': (20.771, 12.194), 'right_shoulder': (13.026, 44.944, 3.728),
+        'right_elbow': (38.602, 26.21), 'right_wrist': (-8.996, 7.737),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (13.313, -8.657, 8.04), 'spine_thoracic': (-5.876, -9.999, 9.602),
-        'neck': (33.506, -3.38, -42.684), 'head': (13.472, -1.486),
-        'right_clavicle': (19.627, 8.568), 'right_shoulder': (13.476, 42.78, 1.599),
-        'right_elbow': (41.424, 23.592), 'right_wrist': (-6.942, 10.104),
+        'right_clavicle': (21.765, 8.087), 'right_shoulder': (13.376, 40.557, 4.619),
+        'right_elbow': (42.032, 25.172), 'right_wrist': (-8.458, 7.598),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (8.769, 0.334, 9.75), 'spine_thoracic': (-10.521, -2.794, 9.437),
-        'neck': (31.919, -3.191, -38.364), 'head': (12.47, -1.536),
-        'right_clavicle': (11.272, 6.734), 'right_shoulder': (20.387, 34.061, -5.189),
-        'right_elbow': (43.537, 12.088), 'right_wrist': (-4.885, 10.702),
+        'right_clavicle': (3.547, 7.128), 'right_shoulder': (21.837, 39.843, -9.98),
+        'right_elbow': (35.91, 6.596), 'right_wrist': (-3.55, 19.148),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (10.953, -0.997, 10.821), 'spine_thoracic': (-10.312, -2.218, 10.072),
-        'neck': (32.373, -3.887, -41.625), 'right_clavicle': (6.559, 8.307),
-        'right_shoulder': (20.184, 38.041, -12.232), 'right_elbow': (44.907, 7.506),
-        'right_wrist': (-6.048, 10.796),
+        'right_clavicle': (-1.697, 12.006), 'right_shoulder': (20.828, 45.487, -16.187),
+        'right_elbow': (34.928, 5.021), 'right_wrist': (-5.334, 18.883),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.159, -0.95, 10.685), 'spine_thoracic': (-10.114, -2.849, 10.033),
-        'neck': (32.34, -3.868, -41.485), 'head': (12.406, -1.573), 'right_clavicle': (7.1, 8.349),
-        'right_shoulder': (19.888, 38.253, -11.568), 'right_elbow': (44.856, 8.213),
-        'right_wrist': (-6.038, 11.023),
+        'right_clavicle': (0.152, 12.003), 'right_shoulder': (19.987, 46.541, -13.831),
+        'right_elbow': (33.76, 7.228), 'right_wrist': (-5.126, 19.826),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.168, -3.679, 9.107), 'spine_thoracic': (-7.851, -8.484, 9.788),
-        'neck': (32.704, -3.642, -41.727), 'head': (12.819, -1.564),
-        'right_clavicle': (15.102, 8.271), 'right_shoulder': (16.471, 41.256, -3.417),
-        'right_elbow': (43.227, 17.583), 'right_wrist': (-6.498, 11.857),
+        'right_clavicle': (15.34, 12.203), 'right_shoulder': (13.825, 46.751, -0.417),
+        'right_elbow': (36.303, 21.807), 'right_wrist': (-8.205, 12.723),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (13.883, -8.637, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
-        'neck': (33.534, -3.504, -43.215), 'head': (13.462, -1.512),
-        'right_clavicle': (19.665, 8.665), 'right_shoulder': (13.489, 43.443, 1.15),
-        'right_elbow': (41.356, 23.478), 'right_wrist': (-7.065, 10.064),
+        'right_clavicle': (22.421, 11.855), 'right_shoulder': (13.223, 43.821, 5.032),
+        'right_elbow': (39.041, 27.059), 'right_wrist': (-8.857, 6.517),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (9.569, -3.514, 8.546), 'spine_thoracic': (-8.296, -6.418, 9.139),
-        'neck': (32.286, -3.023, -38.789), 'head': (12.848, -1.529),
-        'right_clavicle': (15.409, 7.307), 'right_shoulder': (16.708, 37.32, -0.681),
-        'right_elbow': (43.383, 18.228), 'right_wrist': (-5.708, 11.825),
+        'right_clavicle': (10.499, 4.928), 'right_shoulder': (17.847, 38.576, -3.739),
+        'right_elbow': (39.502, 13.187), 'right_wrist': (-5.087, 16.773),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.243, 0.661, 10.754), 'spine_thoracic': (-11.014, -1.93, 10.08),
-        'neck': (32.129, -3.673, -40.357), 'head': (12.353, -1.562),
-        'right_clavicle': (8.695, 7.479), 'right_shoulder': (21.411, 35.526, -9.426),
-        'right_elbow': (43.852, 8.774), 'right_wrist': (-5.257, 10.123),
+        'right_clavicle': (-0.217, 10.773), 'right_shoulder': (22.276, 43.803, -14.052),
+        'right_elbow': (33.748, 4.908), 'right_wrist': (-4.143, 19.588),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
-        'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.878, 12.169), 'right_shoulder': (20.439, 45.775, -16.495),
+        'right_elbow': (35.285, 5.159), 'right_wrist': (-5.574, 18.718),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (12.219, -1.486, 9.936), 'spine_thoracic': (-9.222, -5.755, 9.921),
-        'neck': (32.362, -3.761, -41.219), 'head': (12.485, -1.568),
-        'right_clavicle': (11.246, 8.176), 'right_shoulder': (18.562, 39.4, -7.252),
-        'right_elbow': (44.139, 12.867), 'right_wrist': (-6.116, 11.805),
+        'right_clavicle': (7.496, 12.241), 'right_shoulder': (16.276, 48.084, -6.732),
+        'right_elbow': (33.453, 14.887), 'right_wrist': (-6.498, 18.516),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (13.854, -7.597, 8.237), 'spine_thoracic': (-6.207, -10.0, 9.65),
-        'neck': (33.357, -3.528, -42.867), 'head': (13.321, -1.52),
-        'right_clavicle': (18.621, 8.627), 'right_shoulder': (13.952, 43.233, 0.102),
-        'right_elbow': (41.883, 22.283), 'right_wrist': (-7.019, 10.664),
+        'right_clavicle': (21.701, 12.141), 'right_shoulder': (13.081, 44.459, 4.457),
+        'right_elbow': (38.798, 26.778), 'right_wrist': (-8.973, 7.005),
     })
     human.KeyJoints(26.8, {
-        'spine_lumbar': (12.51, -8.175, 8.005), 'spine_thoracic': (-6.088, -9.795, 9.468),
-        'neck': (33.346, -3.244, -41.821), 'head': (13.404, -1.467),
-        'right_clavicle': (19.107, 8.402), 'right_shoulder': (13.694, 41.832, 1.695),
-        'right_elbow': (41.787, 23.159), 'right_wrist': (-6.762, 10.478),
+        'right_clavicle': (19.725, 6.604), 'right_shoulder': (13.944, 39.673, 3.204),
+        'right_elbow': (42.062, 22.772), 'right_wrist': (-7.807, 9.783),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (9.056, 0.914, 10.135), 'spine_thoracic': (-10.933, -2.184, 9.651),
-        'neck': (31.931, -3.319, -38.778), 'head': (12.404, -1.542),
-        'right_clavicle': (10.399, 6.827), 'right_shoulder': (21.15, 33.977, -6.504),
-        'right_elbow': (43.492, 10.729), 'right_wrist': (-4.853, 10.265),
+        'right_clavicle': (2.161, 8.213), 'right_shoulder': (22.374, 40.819, -11.378),
+        'right_elbow': (34.926, 5.647), 'right_wrist': (-3.518, 19.424),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (11.057, -1.417, 10.822), 'spine_thoracic': (-10.126, -2.28, 10.045),
-        'neck': (32.43, -3.922, -41.879), 'right_clavicle': (6.02, 8.489),
-        'right_shoulder': (19.845, 38.593, -12.87), 'right_elbow': (45.177, 7.221),
-        'right_wrist': (-6.233, 10.973),
+        'right_clavicle': (-1.96, 12.176), 'right_shoulder': (20.464, 45.735, -16.606),
+        'right_elbow': (35.356, 5.07), 'right_wrist': (-5.601, 18.658),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (11.29, -0.736, 10.552), 'spine_thoracic': (-10.112, -3.385, 10.02),
-        'neck': (32.303, -3.811, -41.219), 'head': (12.41, -1.57), 'right_clavicle': (8.033, 8.258),
-        'right_shoulder': (19.897, 38.117, -10.501), 'right_elbow': (44.629, 9.131),
-        'right_wrist': (-5.945, 11.103),
+        'right_clavicle': (1.313, 12.091), 'right_shoulder': (19.188, 47.207, -12.516),
+        'right_elbow': (33.403, 8.683), 'right_wrist': (-5.322, 20.0),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.412, -4.696, 8.837), 'spine_thoracic': (-7.367, -9.143, 9.742),
-        'neck': (32.878, -3.602, -42.008), 'right_clavicle': (16.214, 8.357),
-        'right_shoulder': (15.726, 41.871, -2.307), 'right_elbow': (42.868, 19.032),
-        'right_wrist': (-6.651, 11.638),
+        'right_clavicle': (17.494, 12.221), 'right_shoulder': (13.284, 46.17, 1.216),
+        'right_elbow': (37.372, 23.699), 'right_wrist': (-8.72, 10.678),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (13.883, -8.657, 8.102), 'spine_thoracic': (-5.859, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
-        'right_clavicle': (19.69, 8.665), 'right_shoulder': (13.481, 43.445, 1.174),
-        'right_elbow': (41.343, 23.504), 'right_wrist': (-7.065, 10.049),
+        'right_clavicle': (22.867, 11.03), 'right_shoulder': (13.164, 42.912, 5.359),
+        'right_elbow': (40.039, 27.149), 'right_wrist': (-8.889, 6.135),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (8.977, -1.888, 8.911), 'spine_thoracic': (-9.164, -4.983, 9.158),
-        'neck': (32.073, -3.034, -38.282), 'head': (12.678, -1.529),
-        'right_clavicle': (13.862, 6.977), 'right_shoulder': (18.067, 35.828, -2.142),
-        'right_elbow': (43.567, 15.994), 'right_wrist': (-5.338, 11.684),
+        'right_clavicle': (7.732, 5.229), 'right_shoulder': (19.391, 38.662, -6.088),
+        'right_elbow': (38.291, 10.437), 'right_wrist': (-4.364, 17.974),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.54, 0.19, 10.804), 'spine_thoracic': (-10.827, -2.029, 10.11),
-        'neck': (32.208, -3.756, -40.808), 'head': (12.367, -1.566),
-        'right_clavicle': (8.117, 7.743), 'right_shoulder': (21.104, 36.338, -10.285),
-        'right_elbow': (44.142, 8.389), 'right_wrist': (-5.497, 10.305),
+        'right_clavicle': (-0.77, 11.297), 'right_shoulder': (21.9, 44.502, -14.796),
+        'right_elbow': (33.821, 4.911), 'right_wrist': (-4.509, 19.503),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
-        'spine_lumbar': (11.068, -1.409, 10.813), 'spine_thoracic': (-10.114, -2.321, 10.042),
-        'neck': (32.427, -3.92, -41.866), 'right_clavicle': (6.06, 8.49),
-        'right_shoulder': (19.83, 38.599, -12.82), 'right_elbow': (45.171, 7.269),
-        'right_wrist': (-6.231, 10.985),
+        'right_clavicle': (-1.518, 12.109), 'right_shoulder': (20.417, 45.874, -15.994),
+        'right_elbow': (34.931, 5.484), 'right_wrist': (-5.418, 18.984),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.56, -2.04, 9.672), 'spine_thoracic': (-8.802, -6.716, 9.879),
-        'neck': (32.443, -3.728, -41.324), 'head': (12.567, -1.567),
-        'right_clavicle': (12.541, 8.181), 'right_shoulder': (17.924, 39.991, -5.963),
-        'right_elbow': (43.883, 14.415), 'right_wrist': (-6.224, 11.942),
+        'right_clavicle': (10.134, 12.228), 'right_shoulder': (15.342, 47.828, -4.521),
+        'right_elbow': (34.168, 17.253), 'right_wrist': (-7.042, 16.935),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (13.876, -8.165, 8.158), 'spine_thoracic': (-6.015, -10.0, 9.661),
-        'neck': (33.45, -3.518, -43.055), 'head': (13.393, -1.516),
-        'right_clavicle': (19.165, 8.653), 'right_shoulder': (13.685, 43.371, 0.648),
-        'right_elbow': (41.614, 22.925), 'right_wrist': (-7.051, 10.359),
+        'right_clavicle': (22.074, 12.119), 'right_shoulder': (13.115, 44.259, 4.75),
+        'right_elbow': (38.865, 26.996), 'right_wrist': (-8.958, 6.717),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (11.486, -7.005, 8.075), 'spine_thoracic': (-6.618, -9.054, 9.324),
-        'neck': (33.022, -3.132, -40.74), 'head': (13.248, -1.479),
-        'right_clavicle': (18.195, 8.104), 'right_shoulder': (14.348, 40.526, 1.356),
-        'right_elbow': (42.357, 22.066), 'right_wrist': (-6.478, 11.088),
+        'right_clavicle': (16.899, 5.497), 'right_shoulder': (14.919, 39.072, 1.186),
+        'right_elbow': (41.639, 19.723), 'right_wrist': (-6.938, 12.398),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (9.45, 0.97, 10.431), 'spine_thoracic': (-11.078, -1.947, 9.846),
-        'neck': (32.006, -3.448, -39.361), 'head': (12.388, -1.549),
-        'right_clavicle': (9.749, 6.994), 'right_shoulder': (21.47, 34.17, -7.619),
-        'right_elbow': (43.519, 9.817), 'right_wrist': (-4.898, 10.081),
+        'right_clavicle': (1.109, 9.266), 'right_shoulder': (22.644, 41.949, -12.485),
+        'right_elbow': (34.135, 5.083), 'right_wrist': (-3.625, 19.61),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.976, 12.186), 'right_shoulder': (20.44, 45.751, -16.633),
+        'right_elbow': (35.384, 5.073), 'right_wrist': (-5.618, 18.644),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (11.548, -0.845, 10.385), 'spine_thoracic': (-9.905, -4.035, 9.994),
-        'neck': (32.3, -3.795, -41.163), 'head': (12.417, -1.569), 'right_clavicle': (8.946, 8.219),
-        'right_shoulder': (19.592, 38.404, -9.558), 'right_elbow': (44.496, 10.166),
-        'right_wrist': (-5.97, 11.324),
+        'right_clavicle': (2.928, 12.17), 'right_shoulder': (18.276, 47.771, -10.849),
+        'right_elbow': (33.158, 10.489), 'right_wrist': (-5.614, 19.987),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.613, -5.754, 8.592), 'spine_thoracic': (-6.911, -9.619, 9.7),
-        'neck': (33.062, -3.568, -42.31), 'head': (13.098, -1.537),
-        'right_clavicle': (17.17, 8.457), 'right_shoulder': (15.026, 42.429, -1.348),
-        'right_elbow': (42.513, 20.32), 'right_wrist': (-6.799, 11.337),
+        'right_clavicle': (19.262, 12.244), 'right_shoulder': (13.002, 45.623, 2.556),
+        'right_elbow': (38.179, 25.183), 'right_wrist': (-9.006, 9.0),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (13.766, -8.639, 8.104), 'spine_thoracic': (-5.87, -10.0, 9.683),
-        'neck': (33.538, -3.479, -43.13), 'head': (13.47, -1.507),
-        'right_clavicle': (19.745, 8.631), 'right_shoulder': (13.508, 43.275, 1.32),
-        'right_elbow': (41.318, 23.555), 'right_wrist': (-7.025, 10.025),
+        'right_clavicle': (22.736, 9.693), 'right_shoulder': (13.17, 41.716, 5.277),
+        'right_elbow': (41.246, 26.64), 'right_wrist': (-8.805, 6.388),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (8.785, -0.593, 9.323), 'spine_thoracic': (-9.922, -3.743, 9.253),
-        'neck': (31.948, -3.106, -38.182), 'head': (12.542, -1.532),
-        'right_clavicle': (12.453, 6.795), 'right_shoulder': (19.33, 34.689, -3.684),
-        'right_elbow': (43.593, 13.895), 'right_wrist': (-5.051, 11.238),
+        'right_clavicle': (5.417, 6.068), 'right_shoulder': (20.747, 39.059, -8.184),
+        'right_elbow': (37.086, 8.24), 'right_wrist': (-3.857, 18.713),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (10.775, -0.384, 10.816), 'spine_thoracic': (-10.582, -2.125, 10.099),
-        'neck': (32.287, -3.827, -41.227), 'head': (12.388, -1.57),
-        'right_clavicle': (7.351, 8.032), 'right_shoulder': (20.672, 37.21, -11.278),
-        'right_elbow': (44.514, 7.936), 'right_wrist': (-5.773, 10.539),
+        'right_clavicle': (-1.276, 11.706), 'right_shoulder': (21.37, 45.062, -15.536),
+        'right_elbow': (34.315, 4.958), 'right_wrist': (-4.93, 19.216),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.093, -1.251, 10.773), 'spine_thoracic': (-10.114, -2.488, 10.04),
-        'neck': (32.397, -3.903, -41.738), 'head': (12.43, -1.575),
-        'right_clavicle': (6.397, 8.443), 'right_shoulder': (19.855, 38.471, -12.41),
-        'right_elbow': (45.066, 7.571), 'right_wrist': (-6.165, 10.992),
+        'right_clavicle': (-0.824, 12.02), 'right_shoulder': (20.306, 46.101, -15.053),
+        'right_elbow': (34.314, 6.15), 'right_wrist': (-5.179, 19.442),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (12.878, -2.768, 9.393), 'spine_thoracic': (-8.342, -7.647, 9.835),
-        'neck': (32.558, -3.687, -41.492), 'head': (12.68, -1.565),
-        'right_clavicle': (13.844, 8.21), 'right_shoulder': (17.223, 40.613, -4.668),
-        'right_elbow': (43.576, 16.004), 'right_wrist': (-6.352, 11.963),
+        'right_clavicle': (12.797, 12.208), 'right_shoulder': (14.518, 47.351, -2.386),
+        'right_elbow': (35.162, 19.589), 'right_wrist': (-7.625, 14.937),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (13.883, -8.497, 8.118), 'spine_thoracic': (-5.909, -10.0, 9.675),
-        'neck': (33.509, -3.509, -43.167), 'head': (13.441, -1.514),
-        'right_clavicle': (19.513, 8.662), 'right_shoulder': (13.544, 43.427, 0.997),
-        'right_elbow': (41.435, 23.313), 'right_wrist': (-7.063, 10.155),
+        'right_clavicle': (22.146, 12.11), 'right_shoulder': (13.144, 44.217, 4.81),
+        'right_elbow': (38.876, 27.023), 'right_wrist': (-8.934, 6.677),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (10.451, -5.341, 8.257), 'spine_thoracic': (-7.395, -7.871, 9.202),
-        'neck': (32.616, -3.055, -39.661), 'head': (13.057, -1.517),
-        'right_clavicle': (16.933, 7.715), 'right_shoulder': (15.394, 38.977, 0.549),
-        'right_elbow': (42.945, 20.367), 'right_wrist': (-6.114, 11.654),
+        'right_clavicle': (13.688, 4.892), 'right_shoulder': (16.265, 38.71, -1.21),
+        'right_elbow': (40.663, 16.416), 'right_wrist': (-5.989, 14.864),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (9.881, 0.951, 10.635), 'spine_thoracic': (-11.124, -1.864, 9.994),
-        'neck': (32.058, -3.572, -39.868), 'head': (12.356, -1.556),
-        'right_clavicle': (9.211, 7.233), 'right_shoulder': (21.586, 34.807, -8.584),
-        'right_elbow': (43.639, 9.188), 'right_wrist': (-5.058, 10.016),
+        'right_clavicle': (0.358, 10.096), 'right_shoulder': (22.582, 42.93, -13.345),
+        'right_elbow': (33.871, 4.956), 'right_wrist': (-3.813, 19.618),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
-        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
-        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.974, 12.186), 'right_shoulder': (20.44, 45.751, -16.63),
+        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.618, 18.645),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (11.869, -1.086, 10.18), 'spine_thoracic': (-9.595, -4.829, 9.96),
-        'neck': (32.314, -3.785, -41.168), 'head': (12.434, -1.569),
-        'right_clavicle': (10.012, 8.192), 'right_shoulder': (19.126, 38.856, -8.484),
-        'right_elbow': (44.343, 11.411), 'right_wrist': (-6.028, 11.582),
+        'right_clavicle': (5.025, 12.228), 'right_shoulder': (17.288, 48.067, -8.911),
+        'right_elbow': (33.108, 12.572), 'right_wrist': (-6.013, 19.559),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (13.771, -6.756, 8.385), 'spine_thoracic': (-6.514, -9.904, 9.664),
-        'neck': (33.226, -3.543, -42.607), 'head': (13.221, -1.526),
-        'right_clavicle': (17.957, 8.558), 'right_shoulder': (14.412, 42.913, -0.56),
-        'right_elbow': (42.185, 21.403), 'right_wrist': (-6.933, 11.002),
+        'right_clavicle': (20.751, 12.195), 'right_shoulder': (13.025, 44.954, 3.711),
+        'right_elbow': (38.597, 26.197), 'right_wrist': (-8.997, 7.754),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (13.323, -8.658, 8.041), 'spine_thoracic': (-5.875, -10.0, 9.604),
-        'neck': (33.507, -3.382, -42.693), 'head': (13.472, -1.486),
-        'right_clavicle': (19.631, 8.57), 'right_shoulder': (13.476, 42.791, 1.596),
-        'right_elbow': (41.421, 23.592), 'right_wrist': (-6.944, 10.101),
+        'right_clavicle': (21.793, 8.114), 'right_shoulder': (13.369, 40.575, 4.639),
+        'right_elbow': (42.023, 25.207), 'right_wrist': (-8.467, 7.565),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (8.768, 0.322, 9.743), 'spine_thoracic': (-10.513, -2.806, 9.434),
-        'neck': (31.919, -3.19, -38.359), 'head': (12.47, -1.536),
-        'right_clavicle': (11.289, 6.733), 'right_shoulder': (20.373, 34.063, -5.166),
-        'right_elbow': (43.537, 12.114), 'right_wrist': (-4.886, 10.71),
+        'right_clavicle': (3.574, 7.109), 'right_shoulder': (21.823, 39.827, -9.953),
+        'right_elbow': (35.928, 6.618), 'right_wrist': (-3.553, 19.142),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (10.951, -0.987, 10.821), 'spine_thoracic': (-10.316, -2.217, 10.072),
-        'neck': (32.371, -3.886, -41.619), 'right_clavicle': (6.571, 8.302),
-        'right_shoulder': (20.191, 38.028, -12.218), 'right_elbow': (44.901, 7.512),
-        'right_wrist': (-6.044, 10.792),
+        'right_clavicle': (-1.691, 12.002), 'right_shoulder': (20.836, 45.481, -16.178),
+        'right_elbow': (34.919, 5.02), 'right_wrist': (-5.328, 18.888),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.157, -0.956, 10.687), 'spine_thoracic': (-10.114, -2.841, 10.033),
-        'neck': (32.341, -3.869, -41.49), 'head': (12.406, -1.573),
-        'right_clavicle': (7.086, 8.351), 'right_shoulder': (19.887, 38.256, -11.585),
-        'right_elbow': (44.86, 8.2), 'right_wrist': (-6.04, 11.023),
+        'right_clavicle': (0.135, 12.002), 'right_shoulder': (19.997, 46.53, -13.851),
+        'right_elbow': (33.767, 7.207), 'right_wrist': (-5.124, 19.821),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (13.163, -3.662, 9.112), 'spine_thoracic': (-7.859, -8.471, 9.789),
-        'neck': (32.702, -3.643, -41.723), 'head': (12.817, -1.564),
-        'right_clavicle': (15.082, 8.27), 'right_shoulder': (16.483, 41.246, -3.436),
-        'right_elbow': (43.233, 17.558), 'right_wrist': (-6.496, 11.859),
+        'right_clavicle': (15.3, 12.203), 'right_shoulder': (13.835, 46.761, -0.447),
+        'right_elbow': (36.284, 21.772), 'right_wrist': (-8.196, 12.759),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (13.883, -8.636, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
-        'neck': (33.534, -3.504, -43.214), 'head': (13.461, -1.513),
-        'right_clavicle': (19.664, 8.665), 'right_shoulder': (13.489, 43.443, 1.148),
-        'right_elbow': (41.356, 23.477), 'right_wrist': (-7.065, 10.065),
+        'right_clavicle': (22.414, 11.862), 'right_shoulder': (13.224, 43.83, 5.027),
+        'right_elbow': (39.035, 27.058), 'right_wrist': (-8.857, 6.522),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (9.582, -3.544, 8.541), 'spine_thoracic': (-8.281, -6.443, 9.14),
-        'neck': (32.291, -3.023, -38.801), 'head': (12.852, -1.529),
-        'right_clavicle': (15.436, 7.314), 'right_shoulder': (16.685, 37.347, -0.658),
-        'right_elbow': (43.377, 18.266), 'right_wrist': (-5.715, 11.824),
+        'right_clavicle': (10.55, 4.927), 'right_shoulder': (17.82, 38.578, -3.697),
+        'right_elbow': (39.523, 13.238), 'right_wrist': (-5.101, 16.746),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.238, 0.668, 10.753), 'spine_thoracic': (-11.017, -1.928, 10.079),
-        'neck': (32.128, -3.672, -40.348), 'head': (12.353, -1.561),
-        'right_clavicle': (8.703, 7.474), 'right_shoulder': (21.416, 35.513, -9.412),
-        'right_elbow': (43.848, 8.78), 'right_wrist': (-5.254, 10.12),
+        'right_clavicle': (-0.208, 10.763), 'right_shoulder': (22.282, 43.789, -14.04),
+        'right_elbow': (33.749, 4.909), 'right_wrist': (-4.137, 19.589),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
-        'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.882, 12.169), 'right_shoulder': (20.439, 45.775, -16.5),
+        'right_elbow': (35.289, 5.156), 'right_wrist': (-5.575, 18.715),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (12.213, -1.478, 9.94), 'spine_thoracic': (-9.229, -5.739, 9.922),
-        'neck': (32.361, -3.762, -41.218), 'head': (12.483, -1.568),
-        'right_clavicle': (11.225, 8.177), 'right_shoulder': (18.572, 39.391, -7.273),
-        'right_elbow': (44.143, 12.842), 'right_wrist': (-6.114, 11.802),
+        'right_clavicle': (7.453, 12.241), 'right_shoulder': (16.292, 48.086, -6.769),
+        'right_elbow': (33.443, 14.848), 'right_wrist': (-6.49, 18.538),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (13.854, -7.585, 8.239), 'spine_thoracic': (-6.211, -10.0, 9.65),
-        'neck': (33.355, -3.528, -42.863), 'head': (13.319, -1.52),
-        'right_clavicle': (18.61, 8.626), 'right_shoulder': (13.958, 43.23, 0.092),
-        'right_elbow': (41.888, 22.27), 'right_wrist': (-7.018, 10.669),
+        'right_clavicle': (21.69, 12.142), 'right_shoulder': (13.08, 44.465, 4.448),
+        'right_elbow': (38.796, 26.772), 'right_wrist': (-8.973, 7.013),
     })
     human.KeyJoints(30.6, {
-        'spine_lumbar': (12.525, -8.186, 8.005), 'spine_thoracic': (-6.083, -9.8, 9.47),
-        'neck': (33.349, -3.246, -41.837), 'head': (13.406, -1.467),
-        'right_clavicle': (19.118, 8.406), 'right_shoulder': (13.689, 41.85, 1.695),
-        'right_elbow': (41.78, 23.17), 'right_wrist': (-6.766, 10.471),
+        'right_clavicle': (19.768, 6.627), 'right_shoulder': (13.93, 39.686, 3.235),
+        'right_elbow': (42.067, 22.82), 'right_wrist': (-7.821, 9.739),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (9.049, 0.908, 10.129), 'spine_thoracic': (-10.929, -2.191, 9.648),
-        'neck': (31.93, -3.316, -38.77), 'head': (12.405, -1.542),
-        'right_clavicle': (10.411, 6.825), 'right_shoulder': (21.141, 33.977, -6.484),
-        'right_elbow': (43.492, 10.748), 'right_wrist': (-4.853, 10.271),
+        'right_clavicle': (2.181, 8.194), 'right_shoulder': (22.368, 40.8, -11.357),
+        'right_elbow': (34.942, 5.66), 'right_wrist': (-3.517, 19.42),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (11.056, -1.413, 10.822), 'spine_thoracic': (-10.128, -2.28, 10.045),
-        'neck': (32.43, -3.922, -41.877), 'right_clavicle': (6.025, 8.487),
-        'right_shoulder': (19.848, 38.588, -12.864), 'right_elbow': (45.174, 7.223),
-        'right_wrist': (-6.232, 10.971),
+        'right_clavicle': (-1.957, 12.174), 'right_shoulder': (20.467, 45.733, -16.602),
+        'right_elbow': (35.352, 5.07), 'right_wrist': (-5.599, 18.66),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (11.287, -0.736, 10.554), 'spine_thoracic': (-10.112, -3.375, 10.02),
-        'neck': (32.303, -3.812, -41.222), 'head': (12.409, -1.57),
-        'right_clavicle': (8.017, 8.259), 'right_shoulder': (19.897, 38.117, -10.519),
-        'right_elbow': (44.632, 9.115), 'right_wrist': (-5.945, 11.101),
+        'right_clavicle': (1.29, 12.089), 'right_shoulder': (19.202, 47.196, -12.541),
+        'right_elbow': (33.408, 8.656), 'right_wrist': (-5.318, 20.0),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.409, -4.679, 8.841), 'spine_thoracic': (-7.375, -9.134, 9.743),
-        'neck': (32.875, -3.602, -42.003), 'right_clavicle': (16.197, 8.355),
-        'right_shoulder': (15.739, 41.861, -2.324), 'right_elbow': (42.875, 19.009),
-        'right_wrist': (-6.649, 11.643),
+        'right_clavicle': (17.462, 12.22), 'right_shoulder': (13.293, 46.179, 1.192),
+        'right_elbow': (37.355, 23.67), 'right_wrist': (-8.711, 10.709),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (13.883, -8.658, 8.101), 'spine_thoracic': (-5.859, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
-        'right_clavicle': (19.688, 8.665), 'right_shoulder': (13.48, 43.445, 1.173),
-        'right_elbow': (41.343, 23.503), 'right_wrist': (-7.065, 10.05),
+        'right_clavicle': (22.865, 11.047), 'right_shoulder': (13.165, 42.93, 5.357),
+        'right_elbow': (40.02, 27.149), 'right_wrist': (-8.889, 6.136),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (8.985, -1.914, 8.904), 'spine_thoracic': (-9.15, -5.007, 9.156),
-        'neck': (32.076, -3.034, -38.287), 'head': (12.681, -1.529),
-        'right_clavicle': (13.888, 6.982), 'right_shoulder': (18.044, 35.851, -2.116),
-        'right_elbow': (43.565, 16.032), 'right_wrist': (-5.344, 11.691),
+        'right_clavicle': (7.776, 5.217), 'right_shoulder': (19.366, 38.657, -6.05),
+        'right_elbow': (38.312, 10.48), 'right_wrist': (-4.376, 17.957),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.536, 0.198, 10.804), 'spine_thoracic': (-10.83, -2.028, 10.11),
-        'neck': (32.207, -3.755, -40.802), 'head': (12.367, -1.566),
-        'right_clavicle': (8.128, 7.738), 'right_shoulder': (21.11, 36.324, -10.269),
-        'right_elbow': (44.136, 8.396), 'right_wrist': (-5.493, 10.302),
+        'right_clavicle': (-0.761, 11.289), 'right_shoulder': (21.908, 44.491, -14.783),
+        'right_elbow': (33.816, 4.91), 'right_wrist': (-4.502, 19.506),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
-        'spine_lumbar': (11.068, -1.41, 10.814), 'spine_thoracic': (-10.114, -2.32, 10.042),
-        'neck': (32.428, -3.92, -41.867), 'right_clavicle': (6.057, 8.491),
-        'right_shoulder': (19.829, 38.6, -12.823), 'right_elbow': (45.172, 7.266),
-        'right_wrist': (-6.231, 10.985),
+        'right_clavicle': (-1.527, 12.11), 'right_shoulder': (20.418, 45.872, -16.006),
+        'right_elbow': (34.939, 5.476), 'right_wrist': (-5.421, 18.977),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.554, -2.03, 9.676), 'spine_thoracic': (-8.809, -6.7, 9.88),
-        'neck': (32.441, -3.729, -41.322), 'head': (12.565, -1.567),
-        'right_clavicle': (12.519, 8.18), 'right_shoulder': (17.935, 39.981, -5.985),
-        'right_elbow': (43.888, 14.389), 'right_wrist': (-6.222, 11.941),
+        'right_clavicle': (10.088, 12.228), 'right_shoulder': (15.357, 47.834, -4.558),
+        'right_elbow': (34.154, 17.213), 'right_wrist': (-7.032, 16.965),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (13.876, -8.158, 8.159), 'spine_thoracic': (-6.018, -10.0, 9.661),
-        'neck': (33.449, -3.518, -43.053), 'head': (13.392, -1.516),
-        'right_clavicle': (19.157, 8.653), 'right_shoulder': (13.689, 43.369, 0.64),
-        'right_elbow': (41.618, 22.916), 'right_wrist': (-7.051, 10.364),
+        'right_clavicle': (22.071, 12.119), 'right_shoulder': (13.114, 44.26, 4.748),
+        'right_elbow': (38.864, 26.995), 'right_wrist': (-8.958, 6.719),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (11.503, -7.029, 8.073), 'spine_thoracic': (-6.608, -9.069, 9.326),
-        'neck': (33.028, -3.134, -40.758), 'head': (13.251, -1.478),
-        'right_clavicle': (18.213, 8.11), 'right_shoulder': (14.334, 40.549, 1.364),
-        'right_elbow': (42.347, 22.088), 'right_wrist': (-6.484, 11.078),
+        'right_clavicle': (16.951, 5.513), 'right_shoulder': (14.899, 39.08, 1.224),
+        'right_elbow': (41.651, 19.777), 'right_wrist': (-6.954, 12.354),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (9.442, 0.97, 10.427), 'spine_thoracic': (-11.076, -1.95, 9.843),
-        'neck': (32.005, -3.445, -39.351), 'head': (12.388, -1.549),
-        'right_clavicle': (9.758, 6.99), 'right_shoulder': (21.466, 34.161, -7.601),
-        'right_elbow': (43.518, 9.83), 'right_wrist': (-4.896, 10.084),
+        'right_clavicle': (1.124, 9.25), 'right_shoulder': (22.642, 41.93, -12.469),
+        'right_elbow': (34.144, 5.088), 'right_wrist': (-3.623, 19.608),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.976, 12.186), 'right_shoulder': (20.44, 45.751, -16.633),
+        'right_elbow': (35.384, 5.073), 'right_wrist': (-5.618, 18.644),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (11.542, -0.842, 10.388), 'spine_thoracic': (-9.911, -4.023, 9.994),
-        'neck': (32.3, -3.794, -41.162), 'head': (12.417, -1.569), 'right_clavicle': (8.93, 8.22),
-        'right_shoulder': (19.6, 38.396, -9.574), 'right_elbow': (44.498, 10.147),
-        'right_wrist': (-5.97, 11.319),
+        'right_clavicle': (2.897, 12.169), 'right_shoulder': (18.292, 47.763, -10.88),
+        'right_elbow': (33.161, 10.456), 'right_wrist': (-5.608, 19.989),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.61, -5.736, 8.596), 'spine_thoracic': (-6.918, -9.613, 9.7),
-        'neck': (33.059, -3.568, -42.305), 'head': (13.096, -1.538),
-        'right_clavicle': (17.155, 8.455), 'right_shoulder': (15.037, 42.42, -1.362),
-        'right_elbow': (42.518, 20.3), 'right_wrist': (-6.796, 11.343),
+        'right_clavicle': (19.233, 12.245), 'right_shoulder': (13.002, 45.634, 2.534),
+        'right_elbow': (38.169, 25.162), 'right_wrist': (-9.006, 9.025),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (13.77, -8.639, 8.105), 'spine_thoracic': (-5.87, -10.0, 9.683),
-        'neck': (33.538, -3.48, -43.132), 'head': (13.47, -1.507),
-        'right_clavicle': (19.745, 8.632), 'right_shoulder': (13.508, 43.279, 1.317),
-        'right_elbow': (41.318, 23.554), 'right_wrist': (-7.026, 10.025),
+        'right_clavicle': (22.741, 9.719), 'right_shoulder': (13.17, 41.737, 5.28),
+        'right_elbow': (41.228, 26.655), 'right_wrist': (-8.808, 6.38),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (8.785, -0.612, 9.316), 'spine_thoracic': (-9.91, -3.762, 9.251),
-        'neck': (31.95, -3.104, -38.18), 'head': (12.544, -1.532),
-        'right_clavicle': (12.475, 6.797), 'right_shoulder': (19.31, 34.706, -3.658),
-        'right_elbow': (43.594, 13.928), 'right_wrist': (-5.055, 11.247),
+        'right_clavicle': (5.451, 6.053), 'right_shoulder': (20.727, 39.051, -8.152),
+        'right_elbow': (37.106, 8.271), 'right_wrist': (-3.863, 18.704),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (10.772, -0.374, 10.816), 'spine_thoracic': (-10.586, -2.124, 10.099),
-        'neck': (32.286, -3.826, -41.22), 'head': (12.387, -1.57), 'right_clavicle': (7.365, 8.027),
-        'right_shoulder': (20.681, 37.195, -11.261), 'right_elbow': (44.507, 7.943),
-        'right_wrist': (-5.769, 10.535),
+        'right_clavicle': (-1.268, 11.7), 'right_shoulder': (21.38, 45.054, -15.524),
+        'right_elbow': (34.305, 4.957), 'right_wrist': (-4.923, 19.222),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.092, -1.255, 10.774), 'spine_thoracic': (-10.114, -2.484, 10.04),
-        'neck': (32.398, -3.904, -41.742), 'head': (12.431, -1.575),
-        'right_clavicle': (6.389, 8.444), 'right_shoulder': (19.855, 38.474, -12.421),
-        'right_elbow': (45.069, 7.563), 'right_wrist': (-6.167, 10.992),
+        'right_clavicle': (-0.838, 12.021), 'right_shoulder': (20.309, 46.096, -15.072),
+        'right_elbow': (34.325, 6.136), 'right_wrist': (-5.183, 19.433),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (12.873, -2.754, 9.398), 'spine_thoracic': (-8.35, -7.632, 9.836),
-        'neck': (32.556, -3.688, -41.489), 'head': (12.678, -1.565),
-        'right_clavicle': (13.822, 8.209), 'right_shoulder': (17.236, 40.602, -4.689),
-        'right_elbow': (43.581, 15.977), 'right_wrist': (-6.35, 11.963),
+        'right_clavicle': (12.753, 12.208), 'right_shoulder': (14.531, 47.36, -2.42),
+        'right_elbow': (35.144, 19.551), 'right_wrist': (-7.615, 14.973),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (13.883, -8.494, 8.119), 'spine_thoracic': (-5.91, -10.0, 9.675),
-        'neck': (33.508, -3.509, -43.166), 'head': (13.44, -1.514),
-        'right_clavicle': (19.509, 8.662), 'right_shoulder': (13.546, 43.426, 0.993),
-        'right_elbow': (41.437, 23.308), 'right_wrist': (-7.063, 10.157),
+        'right_clavicle': (22.142, 12.111), 'right_shoulder': (13.141, 44.22, 4.807),
+        'right_elbow': (38.875, 27.023), 'right_wrist': (-8.936, 6.678),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (10.467, -5.372, 8.253), 'spine_thoracic': (-7.38, -7.893, 9.203),
-        'neck': (32.623, -3.056, -39.677), 'head': (13.06, -1.516),
-        'right_clavicle': (16.956, 7.722), 'right_shoulder': (15.374, 39.004, 0.566),
-        'right_elbow': (42.937, 20.399), 'right_wrist': (-6.12, 11.648),
+        'right_clavicle': (13.741, 4.892), 'right_shoulder': (16.242, 38.713, -1.17),
+        'right_elbow': (40.68, 16.47), 'right_wrist': (-6.004, 14.829),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (9.874, 0.952, 10.633), 'spine_thoracic': (-11.124, -1.864, 9.992),
-        'neck': (32.057, -3.57, -39.862), 'head': (12.357, -1.556),
-        'right_clavicle': (9.221, 7.229), 'right_shoulder': (21.586, 34.797, -8.568),
-        'right_elbow': (43.637, 9.197), 'right_wrist': (-5.055, 10.016),
+        'right_clavicle': (0.369, 10.084), 'right_shoulder': (22.586, 42.915, -13.332),
+        'right_elbow': (33.874, 4.957), 'right_wrist': (-3.808, 19.618),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
-        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
-        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
+        'right_clavicle': (-1.975, 12.186), 'right_shoulder': (20.44, 45.751, -16.631),
+        'right_elbow': (35.382, 5.075), 'right_wrist': (-5.618, 18.645),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (11.863, -1.081, 10.184), 'spine_thoracic': (-9.6, -4.815, 9.96),
-        'neck': (32.314, -3.785, -41.167), 'head': (12.433, -1.569),
-        'right_clavicle': (9.993, 8.192), 'right_shoulder': (19.134, 38.848, -8.503),
-        'right_elbow': (44.346, 11.388), 'right_wrist': (-6.027, 11.578),
+        'right_clavicle': (4.986, 12.228), 'right_shoulder': (17.305, 48.063, -8.946),
+        'right_elbow': (33.105, 12.535), 'right_wrist': (-6.006, 19.571),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.768, -6.74, 8.388), 'spine_thoracic': (-6.52, -9.9, 9.665),
-        'neck': (33.223, -3.544, -42.602), 'head': (13.219, -1.526),
-        'right_clavicle': (17.945, 8.556), 'right_shoulder': (14.422, 42.905, -0.572),
-        'right_elbow': (42.19, 21.387), 'right_wrist': (-6.931, 11.008),
+        'right_clavicle': (20.73, 12.196), 'right_shoulder': (13.024, 44.965, 3.695),
+        'right_elbow': (38.592, 26.183), 'right_wrist': (-8.997, 7.771),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (13.332, -8.659, 8.042), 'spine_thoracic': (-5.875, -10.0, 9.606),
-        'neck': (33.508, -3.384, -42.702), 'head': (13.472, -1.486),
-        'right_clavicle': (19.634, 8.571), 'right_shoulder': (13.476, 42.802, 1.594),
-        'right_elbow': (41.418, 23.593), 'right_wrist': (-6.945, 10.099),
+        'right_clavicle': (21.821, 8.142), 'right_shoulder': (13.362, 40.593, 4.658),
+        'right_elbow': (42.014, 25.241), 'right_wrist': (-8.476, 7.533),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (8.767, 0.311, 9.737), 'spine_thoracic': (-10.505, -2.818, 9.431),
-        'neck': (31.919, -3.188, -38.354), 'head': (12.471, -1.536),
-        'right_clavicle': (11.305, 6.733), 'right_shoulder': (20.358, 34.065, -5.142),
-        'right_elbow': (43.538, 12.139), 'right_wrist': (-4.887, 10.717),
+        'right_clavicle': (3.601, 7.091), 'right_shoulder': (21.808, 39.812, -9.926),
+        'right_elbow': (35.946, 6.64), 'right_wrist': (-3.557, 19.137),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (10.949, -0.978, 10.821), 'spine_thoracic': (-10.32, -2.215, 10.073),
-        'neck': (32.37, -3.885, -41.614), 'right_clavicle': (6.583, 8.298),
-        'right_shoulder': (20.199, 38.016, -12.204), 'right_elbow': (44.895, 7.519),
-        'right_wrist': (-6.04, 10.788),
+        'right_clavicle': (-1.685, 11.998), 'right_shoulder': (20.845, 45.476, -16.169),
+        'right_elbow': (34.909, 5.019), 'right_wrist': (-5.322, 18.893),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.2, -0.833, 10.639), 'spine_thoracic': (-10.113, -3.036, 10.029),
-        'neck': (32.318, -3.849, -41.372), 'head': (12.399, -1.572),
-        'right_clavicle': (7.444, 8.309), 'right_shoulder': (19.895, 38.176, -11.164),
-        'right_elbow': (44.761, 8.54), 'right_wrist': (-5.987, 11.048),
+        'right_clavicle': (-0.35, 11.992), 'right_shoulder': (20.191, 46.287, -14.443),
+        'right_elbow': (33.994, 6.644), 'right_wrist': (-5.104, 19.667),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.37, -4.499, 8.886), 'spine_thoracic': (-7.457, -9.033, 9.751),
-        'neck': (32.842, -3.609, -41.953), 'right_clavicle': (16.017, 8.339),
-        'right_shoulder': (15.864, 41.759, -2.504), 'right_elbow': (42.936, 18.771),
-        'right_wrist': (-6.622, 11.687),
+        'right_clavicle': (13.036, 12.207), 'right_shoulder': (14.449, 47.3, -2.198),
+        'right_elbow': (35.263, 19.798), 'right_wrist': (-7.679, 14.741),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (13.875, -8.66, 8.101), 'spine_thoracic': (-5.861, -10.0, 9.683),
-        'neck': (33.539, -3.501, -43.215), 'right_clavicle': (19.71, 8.659),
-        'right_shoulder': (13.489, 43.432, 1.195), 'right_elbow': (41.334, 23.518),
-        'right_wrist': (-7.06, 10.043),
+        'spine_lumbar': (9.649, -5.691, 10.197), 'spine_thoracic': (-9.525, -3.796, 9.695),
+        'neck': (33.404, -3.165, -41.679), 'head': (13.471, -1.451),
+        'right_clavicle': (22.118, 12.116), 'right_shoulder': (13.119, 44.234, 4.785),
+        'right_elbow': (38.872, 27.022), 'right_wrist': (-8.956, 6.683),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (6.893, -9.113, 8.076), 'spine_thoracic': (-7.753, -6.349, 8.602),
-        'neck': (33.245, -2.085, -38.143), 'head': (14.014, -1.427),
-        'right_clavicle': (12.161, 6.774), 'right_shoulder': (16.097, 32.95, -3.6),
-        'right_elbow': (39.374, 14.306), 'right_wrist': (-5.568, 3.041),
+        'spine_lumbar': (8.451, -9.766, 9.783), 'spine_thoracic': (-8.774, -3.975, 9.297),
+        'neck': (34.084, -2.7, -41.622), 'head': (14.102, -1.341), 'right_clavicle': (15.447, 2.6),
+        'right_shoulder': (14.723, 32.131, -1.568), 'right_elbow': (41.505, 14.795),
+        'right_wrist': (-6.318, 2.895),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (6.184, -11.784, 9.461), 'spine_thoracic': (-9.449, -4.176, 9.123),
-        'neck': (34.579, -1.805, -39.979), 'head': (14.898, -1.25),
-        'right_clavicle': (5.471, 6.836), 'right_shoulder': (19.056, 30.598, -13.511),
-        'right_elbow': (36.407, 4.325), 'right_wrist': (-5.668, -5.747),
+        'spine_lumbar': (7.069, -13.708, 9.491), 'spine_thoracic': (-8.529, -4.492, 9.045),
+        'neck': (34.862, -2.004, -41.047), 'head': (14.903, -1.202),
+        'right_clavicle': (4.729, 6.192), 'right_shoulder': (19.482, 31.401, -14.047),
+        'right_elbow': (35.861, 2.645), 'right_wrist': (-5.0, -3.895),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.060115, duration=0.072)
@@ -2134,634 +1767,456 @@ def remove_access_panel_cad():
         'right_wrist': (-1.157, -20.178),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (56.301, 2.086, 11.179),
-        'right_elbow': (33.131, 18.45), 'right_wrist': (-1.15, -21.055),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(35.1, {
-        'spine_lumbar': (6.991, -13.962, 9.62), 'spine_thoracic': (-8.574, -4.503, 9.172),
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.805, 7.889),
-        'right_shoulder': (56.424, 2.109, 11.17), 'right_elbow': (33.021, 18.456),
-        'right_wrist': (-1.143, -21.156),
-    })
-    human.KeyJoints(35.2, {
-        'spine_lumbar': (4.653, -17.322, 9.964), 'spine_thoracic': (-11.118, -6.994, 10.014),
-        'neck': (25.102, 0.227, -7.166), 'head': (9.909, -1.192), 'right_clavicle': (6.371, 8.214),
-        'right_shoulder': (53.582, 4.933, 12.4), 'right_elbow': (31.466, 20.72),
-        'right_wrist': (-0.462, -23.074),
-    })
-    human.KeyJoints(35.3, {
-        'spine_lumbar': (1.083, -20.0, 11.013), 'spine_thoracic': (-14.01, -10.0, 13.251),
-        'neck': (27.186, -0.08, -10.483), 'head': (12.176, -1.195),
-        'right_clavicle': (17.499, 10.792), 'right_shoulder': (51.841, 10.248, 20.516),
-        'right_elbow': (27.897, 30.007), 'right_wrist': (3.167, -27.67),
-    })
-    human.KeyJoints(35.4, {
-        'spine_lumbar': (-0.593, -20.0, 11.483), 'spine_thoracic': (-14.437, -9.872, 14.056),
-        'neck': (27.832, -0.075, -10.814), 'head': (12.826, -1.196),
-        'right_clavicle': (18.758, 11.414), 'right_shoulder': (50.594, 10.271, 21.696),
-        'right_elbow': (27.596, 31.234), 'right_wrist': (3.725, -28.249),
-    })
-    human.KeyJoints(35.5, {
-        'spine_lumbar': (2.962, -12.877, 11.305), 'spine_thoracic': (-11.814, -0.973, 11.403),
-        'neck': (26.13, 0.331, -7.016), 'head': (11.157, -1.19), 'right_clavicle': (6.131, 9.05),
-        'right_shoulder': (49.911, 4.661, 12.326), 'right_elbow': (31.677, 21.02),
-        'right_wrist': (-0.484, -22.93),
-    })
-    human.KeyJoints(35.6, {
-        'spine_lumbar': (7.442, -13.559, 10.022), 'spine_thoracic': (-9.203, -3.999, 9.584),
-        'neck': (24.043, 0.399, -5.385), 'head': (8.32, -1.198), 'right_clavicle': (3.273, 8.059),
-        'right_shoulder': (55.666, 3.128, 11.389), 'right_elbow': (33.507, 18.923),
-        'right_wrist': (-1.089, -19.949),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(35.7, {
-        'spine_lumbar': (6.806, -14.638, 10.067), 'spine_thoracic': (-9.912, -4.956, 9.684),
-        'neck': (24.419, 0.323, -6.121), 'head': (8.844, -1.196), 'right_clavicle': (3.894, 8.064),
-        'right_shoulder': (54.814, 3.73, 11.454), 'right_elbow': (33.161, 19.162),
-        'right_wrist': (-0.997, -20.31),
-    })
-    human.KeyJoints(35.8, {
-        'spine_lumbar': (2.378, -19.827, 10.405), 'spine_thoracic': (-13.096, -9.696, 11.681),
-        'neck': (26.393, 0.037, -9.218), 'head': (11.389, -1.193),
-        'right_clavicle': (13.008, 9.494), 'right_shoulder': (52.15, 8.418, 17.016),
-        'right_elbow': (29.393, 26.156), 'right_wrist': (1.554, -25.621),
-    })
-    human.KeyJoints(35.9, {
-        'spine_lumbar': (0.579, -20.0, 11.464), 'spine_thoracic': (-14.458, -10.0, 14.107),
-        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
-        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
-        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.275),
-    })
-    human.KeyJoints(36.0, {
-        'spine_lumbar': (-1.423, -16.507, 10.979), 'spine_thoracic': (-12.934, -4.61, 12.149),
-        'neck': (27.482, 0.335, -7.763), 'head': (12.524, -1.192),
-        'right_clavicle': (10.992, 9.988), 'right_shoulder': (48.654, 5.545, 16.058),
-        'right_elbow': (29.52, 24.972), 'right_wrist': (1.23, -26.611),
-    })
-    human.KeyJoints(36.1, {
-        'spine_lumbar': (6.7, -12.674, 11.022), 'spine_thoracic': (-10.721, -1.697, 10.684),
-        'neck': (24.81, 0.301, -6.492), 'head': (9.463, -1.194), 'right_clavicle': (4.169, 8.507),
-        'right_shoulder': (53.282, 4.502, 11.199), 'right_elbow': (32.996, 19.49),
-        'right_wrist': (-1.102, -20.605),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(36.2, {
-        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.851, -4.508, 9.332),
-        'neck': (23.841, 0.425, -5.084), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
-        'right_shoulder': (56.129, 2.769, 11.46), 'right_elbow': (33.607, 18.804),
-        'right_wrist': (-1.076, -19.831),
-    })
-    human.KeyJoints(36.3, {
-        'spine_lumbar': (4.313, -18.084, 10.081), 'spine_thoracic': (-11.789, -7.864, 10.375),
-        'neck': (25.377, 0.155, -7.816), 'head': (10.331, -1.191), 'right_clavicle': (7.967, 8.441),
-        'right_shoulder': (52.943, 6.123, 13.47), 'right_elbow': (31.281, 22.044),
-        'right_wrist': (-0.029, -22.963),
-    })
-    human.KeyJoints(36.4, {
-        'spine_lumbar': (0.828, -20.0, 11.215), 'spine_thoracic': (-14.227, -10.0, 13.664),
-        'neck': (27.375, -0.119, -10.868), 'head': (12.362, -1.196),
-        'right_clavicle': (18.48, 11.094), 'right_shoulder': (51.685, 10.69, 21.281),
-        'right_elbow': (27.631, 30.856), 'right_wrist': (3.517, -27.991),
-    })
-    human.KeyJoints(36.5, {
-        'spine_lumbar': (-1.494, -19.839, 11.331), 'spine_thoracic': (-14.226, -9.189, 13.68),
-        'neck': (27.93, 0.042, -10.057), 'head': (12.938, -1.195),
-        'right_clavicle': (17.393, 11.22), 'right_shoulder': (49.923, 9.107, 20.817),
-        'right_elbow': (27.942, 30.182), 'right_wrist': (3.341, -28.101),
-    })
-    human.KeyJoints(36.6, {
-        'spine_lumbar': (4.426, -12.381, 11.393), 'spine_thoracic': (-11.568, -0.599, 11.285),
-        'neck': (25.685, 0.305, -6.942), 'head': (10.673, -1.191), 'right_clavicle': (5.259, 8.886),
-        'right_shoulder': (50.783, 4.721, 11.683), 'right_elbow': (32.229, 20.327),
-        'right_wrist': (-0.796, -21.915),
-    })
-    human.KeyJoints(36.7, {
-        'spine_lumbar': (7.526, -13.732, 9.791), 'spine_thoracic': (-8.85, -4.493, 9.334),
-        'neck': (23.84, 0.426, -5.082), 'head': (8.068, -1.198), 'right_clavicle': (3.075, 7.964),
-        'right_shoulder': (56.13, 2.769, 11.459), 'right_elbow': (33.609, 18.805),
-        'right_wrist': (-1.077, -19.83),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(36.8, {
-        'spine_lumbar': (6.284, -15.351, 10.095), 'spine_thoracic': (-10.42, -5.445, 9.827),
-        'neck': (24.583, 0.289, -6.449), 'head': (9.16, -1.194), 'right_clavicle': (4.572, 8.111),
-        'right_shoulder': (54.242, 4.267, 11.544), 'right_elbow': (32.81, 19.552),
-        'right_wrist': (-0.887, -20.764),
-    })
-    human.KeyJoints(36.9, {
-        'spine_lumbar': (1.857, -19.995, 10.6), 'spine_thoracic': (-13.456, -9.938, 12.233),
-        'neck': (26.698, -0.002, -9.666), 'head': (11.693, -1.194),
-        'right_clavicle': (14.709, 9.954), 'right_shoulder': (52.02, 9.124, 18.317),
-        'right_elbow': (28.811, 27.601), 'right_wrist': (2.147, -26.431),
-    })
-    human.KeyJoints(37.0, {
-        'spine_lumbar': (0.517, -20.0, 11.495), 'spine_thoracic': (-14.479, -10.0, 14.139),
-        'neck': (27.604, -0.168, -11.338), 'head': (12.586, -1.197),
-        'right_clavicle': (19.417, 11.397), 'right_shoulder': (51.369, 11.127, 21.997),
-        'right_elbow': (27.381, 31.669), 'right_wrist': (3.841, -28.278),
-    })
-    human.KeyJoints(37.1, {
-        'spine_lumbar': (-0.171, -15.017, 11.04), 'spine_thoracic': (-12.476, -3.008, 11.78),
-        'neck': (27.071, 0.358, -7.367), 'head': (12.112, -1.191), 'right_clavicle': (8.97, 9.579),
-        'right_shoulder': (48.802, 4.93, 14.496), 'right_elbow': (30.259, 23.311),
-        'right_wrist': (0.525, -25.441),
-    })
-    human.KeyJoints(37.2, {
-        'spine_lumbar': (7.03, -12.983, 10.738), 'spine_thoracic': (-10.302, -2.412, 10.369),
-        'neck': (24.554, 0.323, -6.194), 'head': (9.097, -1.195), 'right_clavicle': (3.908, 8.368),
-        'right_shoulder': (54.085, 4.185, 11.204), 'right_elbow': (33.162, 19.315),
-        'right_wrist': (-1.11, -20.374),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(37.3, {
-        'spine_lumbar': (7.442, -13.84, 9.824), 'spine_thoracic': (-8.979, -4.549, 9.375),
-        'neck': (23.915, 0.413, -5.209), 'head': (8.156, -1.198), 'right_clavicle': (3.164, 7.975),
-        'right_shoulder': (55.969, 2.883, 11.459), 'right_elbow': (33.559, 18.837),
-        'right_wrist': (-1.07, -19.879),
-    })
-    human.KeyJoints(37.4, {
-        'spine_lumbar': (3.629, -18.863, 10.14), 'spine_thoracic': (-12.251, -8.63, 10.723),
-        'neck': (25.711, 0.114, -8.289), 'head': (10.707, -1.191), 'right_clavicle': (9.529, 8.71),
-        'right_shoulder': (52.6, 6.878, 14.503), 'right_elbow': (30.662, 23.282),
-        'right_wrist': (0.429, -23.836),
-    })
-    human.KeyJoints(37.5, {
-        'spine_lumbar': (0.673, -20.0, 11.364), 'spine_thoracic': (-14.367, -10.0, 13.933),
-        'neck': (27.497, -0.148, -11.136), 'head': (12.481, -1.196),
-        'right_clavicle': (19.066, 11.276), 'right_shoulder': (51.543, 10.967, 21.729),
-        'right_elbow': (27.472, 31.361), 'right_wrist': (3.721, -28.172),
-    })
-    human.KeyJoints(37.6, {
-        'spine_lumbar': (-2.002, -19.14, 11.161), 'spine_thoracic': (-13.882, -7.951, 13.185),
-        'neck': (27.906, 0.161, -9.214), 'head': (12.929, -1.194),
-        'right_clavicle': (15.493, 10.886), 'right_shoulder': (49.307, 7.788, 19.469),
-        'right_elbow': (28.359, 28.665), 'right_wrist': (2.747, -27.885),
-    })
-    human.KeyJoints(37.7, {
-        'spine_lumbar': (5.499, -12.381, 11.349), 'spine_thoracic': (-11.331, -0.753, 11.135),
-        'neck': (25.344, 0.286, -6.888), 'head': (10.21, -1.192), 'right_clavicle': (4.748, 8.756),
-        'right_shoulder': (51.653, 4.73, 11.32), 'right_elbow': (32.586, 19.919),
-        'right_wrist': (-0.98, -21.268),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(37.8, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
-    })
-    human.KeyJoints(37.9, {
-        'spine_lumbar': (5.688, -16.213, 10.08), 'spine_thoracic': (-10.842, -6.183, 9.94),
-        'neck': (24.818, 0.246, -6.875), 'head': (9.511, -1.193), 'right_clavicle': (5.454, 8.157),
-        'right_shoulder': (53.808, 4.782, 12.015), 'right_elbow': (32.38, 20.169),
-        'right_wrist': (-0.682, -21.393),
-    })
-    human.KeyJoints(38.0, {
-        'spine_lumbar': (1.414, -20.0, 10.824), 'spine_thoracic': (-13.77, -10.0, 12.794),
-        'neck': (26.972, -0.043, -10.105), 'head': (11.965, -1.194),
-        'right_clavicle': (16.268, 10.418), 'right_shoulder': (51.92, 9.753, 19.537),
-        'right_elbow': (28.291, 28.943), 'right_wrist': (2.71, -27.151),
-    })
-    human.KeyJoints(38.1, {
-        'spine_lumbar': (0.138, -20.0, 11.522), 'spine_thoracic': (-14.484, -10.0, 14.151),
-        'neck': (27.695, -0.143, -11.21), 'head': (12.68, -1.197),
-        'right_clavicle': (19.294, 11.439), 'right_shoulder': (51.084, 10.91, 21.956),
-        'right_elbow': (27.426, 31.602), 'right_wrist': (3.829, -28.293),
-    })
-    human.KeyJoints(38.2, {
-        'spine_lumbar': (1.384, -13.747, 11.17), 'spine_thoracic': (-12.105, -1.735, 11.552),
-        'neck': (26.604, 0.352, -7.143), 'head': (11.639, -1.191), 'right_clavicle': (7.333, 9.27),
-        'right_shoulder': (49.229, 4.694, 13.239), 'right_elbow': (31.013, 21.984),
-        'right_wrist': (-0.054, -24.134),
-    })
-    human.KeyJoints(38.3, {
-        'spine_lumbar': (7.275, -13.283, 10.38), 'spine_thoracic': (-9.752, -3.223, 9.974),
-        'neck': (24.352, 0.356, -5.859), 'head': (8.739, -1.196), 'right_clavicle': (3.584, 8.209),
-        'right_shoulder': (54.919, 3.678, 11.283), 'right_elbow': (33.343, 19.112),
-        'right_wrist': (-1.103, -20.145),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(38.4, {
-        'spine_lumbar': (7.213, -14.122, 9.924), 'spine_thoracic': (-9.338, -4.679, 9.496),
-        'neck': (24.108, 0.379, -5.562), 'head': (8.415, -1.197), 'right_clavicle': (3.418, 8.009),
-        'right_shoulder': (55.521, 3.202, 11.456), 'right_elbow': (33.418, 18.94),
-        'right_wrist': (-1.05, -20.024),
-    })
-    human.KeyJoints(38.5, {
-        'spine_lumbar': (2.981, -19.448, 10.247), 'spine_thoracic': (-12.688, -9.252, 11.162),
-        'neck': (26.058, 0.076, -8.754), 'head': (11.055, -1.192),
-        'right_clavicle': (11.229, 9.065), 'right_shoulder': (52.338, 7.651, 15.701),
-        'right_elbow': (30.026, 24.67), 'right_wrist': (0.962, -24.733),
-    })
-    human.KeyJoints(38.6, {
-        'spine_lumbar': (0.598, -20.0, 11.442), 'spine_thoracic': (-14.438, -10.0, 14.07),
-        'neck': (27.56, -0.163, -11.276), 'head': (12.542, -1.197),
-        'right_clavicle': (19.352, 11.366), 'right_shoulder': (51.464, 11.107, 21.947),
-        'right_elbow': (27.396, 31.608), 'right_wrist': (3.819, -28.254),
-    })
-    human.KeyJoints(38.7, {
-        'spine_lumbar': (-2.076, -17.976, 11.033), 'spine_thoracic': (-13.432, -6.356, 12.646),
-        'neck': (27.774, 0.268, -8.395), 'head': (12.81, -1.193),
-        'right_clavicle': (13.272, 10.455), 'right_shoulder': (48.857, 6.536, 17.808),
-        'right_elbow': (28.874, 26.852), 'right_wrist': (2.011, -27.443),
-    })
-    human.KeyJoints(38.8, {
-        'spine_lumbar': (6.231, -12.402, 11.247), 'spine_thoracic': (-11.06, -1.087, 10.943),
-        'neck': (25.068, 0.289, -6.712), 'head': (9.826, -1.193), 'right_clavicle': (4.4, 8.632),
-        'right_shoulder': (52.503, 4.718, 11.207), 'right_elbow': (32.834, 19.654),
-        'right_wrist': (-1.066, -20.852),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(38.9, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
-    })
-    human.KeyJoints(39.0, {
-        'spine_lumbar': (5.018, -17.157, 10.068), 'spine_thoracic': (-11.308, -7.009, 10.116),
-        'neck': (25.088, 0.201, -7.336), 'head': (9.908, -1.192), 'right_clavicle': (6.582, 8.26),
-        'right_shoulder': (53.36, 5.407, 12.629), 'right_elbow': (31.866, 20.989),
-        'right_wrist': (-0.403, -22.13),
-    })
-    human.KeyJoints(39.1, {
-        'spine_lumbar': (1.077, -20.0, 11.02), 'spine_thoracic': (-14.019, -10.0, 13.266),
-        'neck': (27.193, -0.081, -10.499), 'head': (12.183, -1.195),
-        'right_clavicle': (17.537, 10.804), 'right_shoulder': (51.827, 10.27, 20.546),
-        'right_elbow': (27.901, 30.041), 'right_wrist': (3.179, -27.665),
-    })
-    human.KeyJoints(39.2, {
-        'spine_lumbar': (-0.625, -20.0, 11.479), 'spine_thoracic': (-14.432, -9.858, 14.045),
-        'neck': (27.836, -0.071, -10.791), 'head': (12.83, -1.196),
-        'right_clavicle': (18.721, 11.409), 'right_shoulder': (50.571, 10.236, 21.674),
-        'right_elbow': (27.607, 31.206), 'right_wrist': (3.715, -28.244),
-    })
-    human.KeyJoints(39.3, {
-        'spine_lumbar': (2.98, -12.869, 11.306), 'spine_thoracic': (-11.811, -0.966, 11.402),
-        'neck': (26.125, 0.331, -7.015), 'head': (11.151, -1.19), 'right_clavicle': (6.119, 9.048),
-        'right_shoulder': (49.92, 4.662, 12.317), 'right_elbow': (31.684, 21.011),
-        'right_wrist': (-0.488, -22.917),
-    })
-    human.KeyJoints(39.4, {
-        'spine_lumbar': (7.44, -13.555, 10.026), 'spine_thoracic': (-9.209, -3.99, 9.589),
-        'neck': (24.047, 0.398, -5.391), 'head': (8.325, -1.198), 'right_clavicle': (3.277, 8.06),
-        'right_shoulder': (55.657, 3.135, 11.387), 'right_elbow': (33.505, 18.926),
-        'right_wrist': (-1.089, -19.951),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(39.5, {
-        'spine_lumbar': (6.814, -14.628, 10.065), 'spine_thoracic': (-9.902, -4.95, 9.681),
-        'neck': (24.413, 0.324, -6.111), 'head': (8.836, -1.196), 'right_clavicle': (3.884, 8.063),
-        'right_shoulder': (54.826, 3.721, 11.454), 'right_elbow': (33.166, 19.157),
-        'right_wrist': (-0.998, -20.304),
-    })
-    human.KeyJoints(39.6, {
-        'spine_lumbar': (2.388, -19.823, 10.402), 'spine_thoracic': (-13.09, -9.691, 11.672),
-        'neck': (26.387, 0.038, -9.211), 'head': (11.384, -1.193),
-        'right_clavicle': (12.979, 9.487), 'right_shoulder': (52.152, 8.406, 16.994),
-        'right_elbow': (29.403, 26.131), 'right_wrist': (1.544, -25.606),
-    })
-    human.KeyJoints(39.7, {
-        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
-        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
-        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
-        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
-    })
-    human.KeyJoints(39.8, {
-        'spine_lumbar': (-1.437, -16.532, 10.979), 'spine_thoracic': (-12.941, -4.638, 12.156),
-        'neck': (27.487, 0.335, -7.771), 'head': (12.529, -1.192),
-        'right_clavicle': (11.027, 9.995), 'right_shoulder': (48.653, 5.558, 16.085),
-        'right_elbow': (29.508, 25.001), 'right_wrist': (1.242, -26.627),
-    })
-    human.KeyJoints(39.9, {
-        'spine_lumbar': (6.694, -12.669, 11.026), 'spine_thoracic': (-10.728, -1.685, 10.689),
-        'neck': (24.814, 0.3, -6.496), 'head': (9.469, -1.194), 'right_clavicle': (4.173, 8.509),
-        'right_shoulder': (53.269, 4.507, 11.199), 'right_elbow': (32.994, 19.492),
-        'right_wrist': (-1.102, -20.608),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(40.0, {
-        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.85, -4.508, 9.331),
-        'neck': (23.84, 0.425, -5.083), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
-        'right_shoulder': (56.13, 2.769, 11.46), 'right_elbow': (33.608, 18.804),
-        'right_wrist': (-1.076, -19.831),
-    })
-    human.KeyJoints(40.1, {
-        'spine_lumbar': (4.324, -18.069, 10.081), 'spine_thoracic': (-11.781, -7.851, 10.37),
-        'neck': (25.373, 0.156, -7.808), 'head': (10.324, -1.191), 'right_clavicle': (7.942, 8.438),
-        'right_shoulder': (52.95, 6.11, 13.454), 'right_elbow': (31.291, 22.025),
-        'right_wrist': (-0.035, -22.948),
-    })
-    human.KeyJoints(40.2, {
-        'spine_lumbar': (0.831, -20.0, 11.212), 'spine_thoracic': (-14.224, -10.0, 13.658),
-        'neck': (27.372, -0.119, -10.862), 'head': (12.359, -1.196),
-        'right_clavicle': (18.468, 11.09), 'right_shoulder': (51.688, 10.684, 21.271),
-        'right_elbow': (27.634, 30.845), 'right_wrist': (3.512, -27.987),
-    })
-    human.KeyJoints(40.3, {
-        'spine_lumbar': (-1.48, -19.847, 11.334), 'spine_thoracic': (-14.231, -9.206, 13.688),
-        'neck': (27.929, 0.04, -10.072), 'head': (12.937, -1.195),
-        'right_clavicle': (17.421, 11.225), 'right_shoulder': (49.934, 9.129, 20.837),
-        'right_elbow': (27.936, 30.205), 'right_wrist': (3.35, -28.103),
-    })
-    human.KeyJoints(40.4, {
-        'spine_lumbar': (4.406, -12.383, 11.392), 'spine_thoracic': (-11.572, -0.6, 11.288),
-        'neck': (25.691, 0.306, -6.942), 'head': (10.681, -1.191), 'right_clavicle': (5.27, 8.889),
-        'right_shoulder': (50.768, 4.721, 11.69), 'right_elbow': (32.222, 20.335),
-        'right_wrist': (-0.793, -21.928),
-    })
-    human.KeyJoints(40.5, {
-        'spine_lumbar': (7.525, -13.731, 9.793), 'spine_thoracic': (-8.852, -4.49, 9.336),
-        'neck': (23.842, 0.425, -5.084), 'head': (8.069, -1.198), 'right_clavicle': (3.077, 7.964),
-        'right_shoulder': (56.127, 2.772, 11.458), 'right_elbow': (33.608, 18.806),
-        'right_wrist': (-1.077, -19.831),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(40.6, {
-        'spine_lumbar': (6.293, -15.338, 10.095), 'spine_thoracic': (-10.412, -5.434, 9.825),
-        'neck': (24.579, 0.289, -6.442), 'head': (9.154, -1.194), 'right_clavicle': (4.56, 8.111),
-        'right_shoulder': (54.25, 4.259, 11.538), 'right_elbow': (32.817, 19.543),
-        'right_wrist': (-0.89, -20.755),
-    })
-    human.KeyJoints(40.7, {
-        'spine_lumbar': (1.865, -19.995, 10.597), 'spine_thoracic': (-13.451, -9.936, 12.224),
-        'neck': (26.693, -0.002, -9.659), 'head': (11.688, -1.194),
-        'right_clavicle': (14.682, 9.946), 'right_shoulder': (52.022, 9.113, 18.296),
-        'right_elbow': (28.821, 27.577), 'right_wrist': (2.137, -26.418),
-    })
-    human.KeyJoints(40.8, {
-        'spine_lumbar': (0.52, -20.0, 11.494), 'spine_thoracic': (-14.479, -10.0, 14.139),
-        'neck': (27.603, -0.168, -11.339), 'head': (12.585, -1.197),
-        'right_clavicle': (19.418, 11.397), 'right_shoulder': (51.372, 11.128, 21.997),
-        'right_elbow': (27.38, 31.669), 'right_wrist': (3.841, -28.278),
-    })
-    human.KeyJoints(40.9, {
-        'spine_lumbar': (-0.196, -15.04, 11.039), 'spine_thoracic': (-12.484, -3.032, 11.785),
-        'neck': (27.078, 0.358, -7.373), 'head': (12.119, -1.191), 'right_clavicle': (9.001, 9.585),
-        'right_shoulder': (48.798, 4.937, 14.52), 'right_elbow': (30.246, 23.336),
-        'right_wrist': (0.535, -25.462),
-    })
-    human.KeyJoints(41.0, {
-        'spine_lumbar': (7.025, -12.978, 10.743), 'spine_thoracic': (-10.31, -2.399, 10.375),
-        'neck': (24.559, 0.322, -6.2), 'head': (9.103, -1.195), 'right_clavicle': (3.913, 8.371),
-        'right_shoulder': (54.07, 4.192, 11.203), 'right_elbow': (33.159, 19.318),
-        'right_wrist': (-1.11, -20.378),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(41.1, {
-        'spine_lumbar': (7.444, -13.837, 9.823), 'spine_thoracic': (-8.975, -4.548, 9.373),
-        'neck': (23.912, 0.414, -5.206), 'head': (8.153, -1.198), 'right_clavicle': (3.161, 7.974),
-        'right_shoulder': (55.974, 2.879, 11.459), 'right_elbow': (33.56, 18.836),
-        'right_wrist': (-1.071, -19.878),
-    })
-    human.KeyJoints(41.2, {
-        'spine_lumbar': (3.64, -18.851, 10.139), 'spine_thoracic': (-12.244, -8.618, 10.717),
-        'neck': (25.705, 0.115, -8.281), 'head': (10.701, -1.191), 'right_clavicle': (9.501, 8.704),
-        'right_shoulder': (52.605, 6.865, 14.484), 'right_elbow': (30.673, 23.26),
-        'right_wrist': (0.421, -23.821),
-    })
-    human.KeyJoints(41.3, {
-        'spine_lumbar': (0.675, -20.0, 11.362), 'spine_thoracic': (-14.366, -10.0, 13.929),
-        'neck': (27.496, -0.147, -11.132), 'head': (12.48, -1.196),
-        'right_clavicle': (19.059, 11.274), 'right_shoulder': (51.545, 10.964, 21.724),
-        'right_elbow': (27.473, 31.355), 'right_wrist': (3.718, -28.17),
-    })
-    human.KeyJoints(41.4, {
-        'spine_lumbar': (-1.997, -19.157, 11.164), 'spine_thoracic': (-13.889, -7.976, 13.194),
-        'neck': (27.907, 0.159, -9.229), 'head': (12.93, -1.194),
-        'right_clavicle': (15.529, 10.893), 'right_shoulder': (49.316, 7.811, 19.495),
-        'right_elbow': (28.352, 28.694), 'right_wrist': (2.759, -27.89),
-    })
-    human.KeyJoints(41.5, {
-        'spine_lumbar': (5.483, -12.381, 11.35), 'spine_thoracic': (-11.335, -0.749, 11.138),
-        'neck': (25.35, 0.286, -6.89), 'head': (10.217, -1.192), 'right_clavicle': (4.755, 8.758),
-        'right_shoulder': (51.639, 4.729, 11.325), 'right_elbow': (32.581, 19.924),
-        'right_wrist': (-0.977, -21.277),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(41.6, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
-    })
-    human.KeyJoints(41.7, {
-        'spine_lumbar': (5.699, -16.198, 10.08), 'spine_thoracic': (-10.834, -6.17, 9.938),
-        'neck': (24.814, 0.247, -6.867), 'head': (9.504, -1.193), 'right_clavicle': (5.437, 8.156),
-        'right_shoulder': (53.816, 4.772, 12.006), 'right_elbow': (32.388, 20.157),
-        'right_wrist': (-0.686, -21.382),
-    })
-    human.KeyJoints(41.8, {
-        'spine_lumbar': (1.421, -20.0, 10.82), 'spine_thoracic': (-13.765, -10.0, 12.785),
-        'neck': (26.968, -0.042, -10.098), 'head': (11.961, -1.194),
-        'right_clavicle': (16.244, 10.411), 'right_shoulder': (51.922, 9.744, 19.518),
-        'right_elbow': (28.299, 28.922), 'right_wrist': (2.701, -27.141),
-    })
-    human.KeyJoints(41.9, {
-        'spine_lumbar': (0.149, -20.0, 11.521), 'spine_thoracic': (-14.484, -10.0, 14.151),
-        'neck': (27.692, -0.143, -11.215), 'head': (12.677, -1.197),
-        'right_clavicle': (19.298, 11.438), 'right_shoulder': (51.091, 10.918, 21.957),
-        'right_elbow': (27.424, 31.605), 'right_wrist': (3.829, -28.293),
-    })
-    human.KeyJoints(42.0, {
-        'spine_lumbar': (1.356, -13.767, 11.167), 'spine_thoracic': (-12.111, -1.753, 11.555),
-        'neck': (26.612, 0.352, -7.145), 'head': (11.648, -1.191), 'right_clavicle': (7.357, 9.274),
-        'right_shoulder': (49.218, 4.696, 13.257), 'right_elbow': (31.0, 22.004),
-        'right_wrist': (-0.045, -24.157),
-    })
-    human.KeyJoints(42.1, {
-        'spine_lumbar': (7.271, -13.278, 10.386), 'spine_thoracic': (-9.762, -3.209, 9.981),
-        'neck': (24.358, 0.355, -5.868), 'head': (8.747, -1.196), 'right_clavicle': (3.589, 8.212),
-        'right_shoulder': (54.905, 3.688, 11.281), 'right_elbow': (33.341, 19.115),
-        'right_wrist': (-1.103, -20.148),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(42.2, {
-        'spine_lumbar': (7.218, -14.115, 9.922), 'spine_thoracic': (-9.33, -4.675, 9.493),
-        'neck': (24.104, 0.379, -5.554), 'head': (8.409, -1.197), 'right_clavicle': (3.412, 8.008),
-        'right_shoulder': (55.531, 3.195, 11.456), 'right_elbow': (33.421, 18.938),
-        'right_wrist': (-1.05, -20.02),
-    })
-    human.KeyJoints(42.3, {
-        'spine_lumbar': (2.991, -19.44, 10.245), 'spine_thoracic': (-12.681, -9.243, 11.154),
-        'neck': (26.052, 0.077, -8.746), 'head': (11.049, -1.192),
-        'right_clavicle': (11.199, 9.058), 'right_shoulder': (52.341, 7.638, 15.68),
-        'right_elbow': (30.037, 24.646), 'right_wrist': (0.953, -24.717),
-    })
-    human.KeyJoints(42.4, {
-        'spine_lumbar': (0.599, -20.0, 11.441), 'spine_thoracic': (-14.438, -10.0, 14.068),
-        'neck': (27.559, -0.163, -11.275), 'head': (12.541, -1.197),
-        'right_clavicle': (19.349, 11.365), 'right_shoulder': (51.465, 11.106, 21.945),
-        'right_elbow': (27.397, 31.606), 'right_wrist': (3.818, -28.253),
-    })
-    human.KeyJoints(42.5, {
-        'spine_lumbar': (-2.081, -17.999, 11.034), 'spine_thoracic': (-13.44, -6.385, 12.655),
-        'neck': (27.778, 0.267, -8.406), 'head': (12.813, -1.193),
-        'right_clavicle': (13.311, 10.462), 'right_shoulder': (48.863, 6.556, 17.837),
-        'right_elbow': (28.864, 26.884), 'right_wrist': (2.024, -27.454),
-    })
-    human.KeyJoints(42.6, {
-        'spine_lumbar': (6.222, -12.4, 11.249), 'spine_thoracic': (-11.065, -1.079, 10.947),
-        'neck': (25.072, 0.289, -6.715), 'head': (9.832, -1.193), 'right_clavicle': (4.405, 8.634),
-        'right_shoulder': (52.49, 4.719, 11.207), 'right_elbow': (32.831, 19.657),
-        'right_wrist': (-1.065, -20.857),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(42.7, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
-    })
-    human.KeyJoints(42.8, {
-        'spine_lumbar': (5.03, -17.142, 10.068), 'spine_thoracic': (-11.3, -6.995, 10.112),
-        'neck': (25.083, 0.202, -7.328), 'head': (9.901, -1.192), 'right_clavicle': (6.561, 8.258),
-        'right_shoulder': (53.368, 5.396, 12.617), 'right_elbow': (31.875, 20.973),
-        'right_wrist': (-0.408, -22.117),
-    })
-    human.KeyJoints(42.9, {
-        'spine_lumbar': (1.082, -20.0, 11.017), 'spine_thoracic': (-14.015, -10.0, 13.259),
-        'neck': (27.189, -0.081, -10.492), 'head': (12.18, -1.195),
-        'right_clavicle': (17.518, 10.798), 'right_shoulder': (51.829, 10.262, 20.532),
-        'right_elbow': (27.906, 30.025), 'right_wrist': (3.173, -27.658),
-    })
-    human.KeyJoints(43.0, {
-        'spine_lumbar': (-0.61, -20.0, 11.481), 'spine_thoracic': (-14.435, -9.865, 14.05),
-        'neck': (27.834, -0.073, -10.802), 'head': (12.828, -1.196),
-        'right_clavicle': (18.738, 11.411), 'right_shoulder': (50.582, 10.252, 21.684),
-        'right_elbow': (27.602, 31.219), 'right_wrist': (3.719, -28.247),
-    })
-    human.KeyJoints(43.1, {
-        'spine_lumbar': (2.954, -12.881, 11.304), 'spine_thoracic': (-11.816, -0.976, 11.404),
-        'neck': (26.133, 0.331, -7.017), 'head': (11.159, -1.19), 'right_clavicle': (6.136, 9.051),
-        'right_shoulder': (49.907, 4.661, 12.33), 'right_elbow': (31.673, 21.025),
-        'right_wrist': (-0.482, -22.937),
-    })
-    human.KeyJoints(43.2, {
-        'spine_lumbar': (7.438, -13.551, 10.031), 'spine_thoracic': (-9.218, -3.979, 9.595),
-        'neck': (24.051, 0.398, -5.398), 'head': (8.331, -1.198), 'right_clavicle': (3.281, 8.063),
-        'right_shoulder': (55.647, 3.143, 11.386), 'right_elbow': (33.502, 18.928),
-        'right_wrist': (-1.089, -19.954),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.3, {
-        'spine_lumbar': (6.822, -14.618, 10.063), 'spine_thoracic': (-9.892, -4.944, 9.678),
-        'neck': (24.407, 0.325, -6.101), 'head': (8.828, -1.196), 'right_clavicle': (3.875, 8.062),
-        'right_shoulder': (54.838, 3.711, 11.454), 'right_elbow': (33.171, 19.152),
-        'right_wrist': (-0.999, -20.298),
-    })
-    human.KeyJoints(43.4, {
-        'spine_lumbar': (2.397, -19.819, 10.399), 'spine_thoracic': (-13.083, -9.685, 11.663),
-        'neck': (26.382, 0.038, -9.204), 'head': (11.379, -1.193),
-        'right_clavicle': (12.949, 9.479), 'right_shoulder': (52.155, 8.394, 16.972),
-        'right_elbow': (29.414, 26.106), 'right_wrist': (1.534, -25.592),
-    })
-    human.KeyJoints(43.5, {
-        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
-        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
-        'right_clavicle': (19.427, 11.389), 'right_shoulder': (51.443, 11.145, 22.004),
-        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
-    })
-    human.KeyJoints(43.6, {
-        'spine_lumbar': (-1.45, -16.556, 10.978), 'spine_thoracic': (-12.949, -4.666, 12.163),
-        'neck': (27.492, 0.334, -7.78), 'head': (12.534, -1.192),
-        'right_clavicle': (11.063, 10.002), 'right_shoulder': (48.653, 5.57, 16.112),
-        'right_elbow': (29.497, 25.03), 'right_wrist': (1.254, -26.643),
-    })
-    human.KeyJoints(43.7, {
-        'spine_lumbar': (6.687, -12.663, 11.031), 'spine_thoracic': (-10.734, -1.673, 10.694),
-        'neck': (24.818, 0.3, -6.5), 'head': (9.475, -1.194), 'right_clavicle': (4.176, 8.512),
-        'right_shoulder': (53.256, 4.512, 11.199), 'right_elbow': (32.991, 19.495),
-        'right_wrist': (-1.101, -20.612),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.8, {
-        'spine_lumbar': (7.522, -13.742, 9.788), 'spine_thoracic': (-8.85, -4.507, 9.331),
-        'neck': (23.84, 0.425, -5.083), 'head': (8.067, -1.198), 'right_clavicle': (3.076, 7.962),
-        'right_shoulder': (56.131, 2.768, 11.46), 'right_elbow': (33.608, 18.804),
-        'right_wrist': (-1.076, -19.83),
-    })
-    human.KeyJoints(43.9, {
-        'spine_lumbar': (4.336, -18.055, 10.08), 'spine_thoracic': (-11.774, -7.837, 10.365),
-        'neck': (25.368, 0.157, -7.8), 'head': (10.316, -1.191), 'right_clavicle': (7.917, 8.434),
-        'right_shoulder': (52.956, 6.098, 13.439), 'right_elbow': (31.301, 22.006),
-        'right_wrist': (-0.042, -22.934),
-    })
-    human.KeyJoints(44.0, {
-        'spine_lumbar': (0.834, -20.0, 11.209), 'spine_thoracic': (-14.221, -10.0, 13.652),
-        'neck': (27.37, -0.118, -10.857), 'head': (12.357, -1.196),
-        'right_clavicle': (18.455, 11.086), 'right_shoulder': (51.69, 10.678, 21.261),
-        'right_elbow': (27.638, 30.834), 'right_wrist': (3.508, -27.983),
-    })
-    human.KeyJoints(44.1, {
-        'spine_lumbar': (-1.466, -19.856, 11.337), 'spine_thoracic': (-14.236, -9.224, 13.696),
-        'neck': (27.928, 0.037, -10.087), 'head': (12.936, -1.195),
-        'right_clavicle': (17.45, 11.229), 'right_shoulder': (49.945, 9.151, 20.857),
-        'right_elbow': (27.93, 30.227), 'right_wrist': (3.358, -28.106),
-    })
-    human.KeyJoints(44.2, {
-        'spine_lumbar': (4.385, -12.384, 11.392), 'spine_thoracic': (-11.576, -0.601, 11.29),
-        'neck': (25.698, 0.306, -6.942), 'head': (10.689, -1.191), 'right_clavicle': (5.281, 8.891),
-        'right_shoulder': (50.754, 4.721, 11.697), 'right_elbow': (32.214, 20.344),
-        'right_wrist': (-0.789, -21.941),
-    })
-    human.KeyJoints(44.3, {
-        'spine_lumbar': (7.525, -13.729, 9.795), 'spine_thoracic': (-8.855, -4.486, 9.338),
-        'neck': (23.844, 0.425, -5.086), 'head': (8.071, -1.198), 'right_clavicle': (3.078, 7.965),
-        'right_shoulder': (56.124, 2.775, 11.458), 'right_elbow': (33.607, 18.806),
-        'right_wrist': (-1.077, -19.832),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(44.4, {
-        'spine_lumbar': (6.286, -15.349, 10.095), 'spine_thoracic': (-10.418, -5.442, 9.826),
-        'neck': (24.582, 0.289, -6.447), 'head': (9.159, -1.194), 'right_clavicle': (4.57, 8.111),
-        'right_shoulder': (54.244, 4.265, 11.543), 'right_elbow': (32.811, 19.55),
-        'right_wrist': (-0.888, -20.762),
-    })
-    human.KeyJoints(44.5, {
-        'spine_lumbar': (1.846, -19.995, 10.605), 'spine_thoracic': (-13.464, -9.94, 12.246),
-        'neck': (26.704, -0.003, -9.676), 'head': (11.699, -1.194),
-        'right_clavicle': (14.747, 9.965), 'right_shoulder': (52.017, 9.139, 18.346),
-        'right_elbow': (28.798, 27.633), 'right_wrist': (2.16, -26.449),
-    })
-    human.KeyJoints(44.6, {
-        'spine_lumbar': (0.508, -20.0, 11.497), 'spine_thoracic': (-14.479, -10.0, 14.141),
-        'neck': (27.607, -0.168, -11.338), 'head': (12.589, -1.197),
-        'right_clavicle': (19.415, 11.398), 'right_shoulder': (51.361, 11.123, 21.995),
-        'right_elbow': (27.38, 31.667), 'right_wrist': (3.841, -28.281),
-    })
-    human.KeyJoints(44.7, {
-        'spine_lumbar': (-0.485, -15.161, 10.947), 'spine_thoracic': (-12.315, -2.985, 11.686),
-        'neck': (27.076, 0.38, -7.222), 'head': (12.12, -1.191), 'right_clavicle': (8.775, 9.528),
-        'right_shoulder': (48.962, 4.541, 14.276), 'right_elbow': (29.959, 23.063),
-        'right_wrist': (0.459, -26.225),
-    })
-    human.KeyJoints(44.8, {
-        'spine_lumbar': (6.47, -13.211, 10.572), 'spine_thoracic': (-10.041, -2.394, 10.214),
-        'neck': (24.59, 0.357, -5.978), 'head': (9.125, -1.195), 'right_clavicle': (3.641, 8.294),
-        'right_shoulder': (54.278, 3.558, 10.897), 'right_elbow': (32.669, 18.96),
-        'right_wrist': (-1.193, -21.627),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)
-    human.KeyJoints(44.9, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
         'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(35.1, {
+        'spine_lumbar': (6.658, -14.175, 9.672), 'spine_thoracic': (-8.769, -4.686, 9.329),
+        'neck': (24.036, 0.438, -5.109), 'head': (8.283, -1.198), 'right_clavicle': (2.356, 8.139),
+        'right_shoulder': (56.181, 2.633, 10.928), 'right_elbow': (32.422, 18.28),
+        'right_wrist': (-1.166, -20.604),
+    })
+    human.KeyJoints(35.2, {
+        'spine_lumbar': (0.714, -18.592, 10.926), 'spine_thoracic': (-13.311, -8.489, 12.712),
+        'neck': (26.988, 0.065, -9.36), 'head': (11.993, -1.193),
+        'right_clavicle': (11.635, 12.561), 'right_shoulder': (51.239, 10.326, 14.88),
+        'right_elbow': (24.893, 23.851), 'right_wrist': (-0.083, -22.642),
+    })
+    human.KeyJoints(35.3, {
+        'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
+        'neck': (27.886, -0.024, -10.49), 'head': (12.886, -1.196),
+        'right_clavicle': (19.261, 14.94), 'right_shoulder': (51.77, 12.554, 21.247),
+        'right_elbow': (23.072, 31.064), 'right_wrist': (2.255, -25.752),
+    })
+    human.KeyJoints(35.4, {
+        'right_clavicle': (12.442, 6.769), 'right_shoulder': (47.177, 4.321, 15.11),
+        'right_elbow': (28.404, 23.577), 'right_wrist': (0.092, -23.389),
+    })
+    human.KeyJoints(35.5, {
+        'right_clavicle': (-8.023, 13.432), 'right_shoulder': (47.528, 15.153, 4.305),
+        'right_elbow': (21.512, 13.917), 'right_wrist': (-2.324, -7.45),
+    })
+    human.KeyJoints(35.6, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.88, 17.809, 4.221),
+        'right_elbow': (16.285, 13.631), 'right_wrist': (-1.844, -4.216),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(35.7, {
+        'right_clavicle': (-3.48, 14.742), 'right_shoulder': (48.909, 16.288, 7.049),
+        'right_elbow': (18.788, 16.337), 'right_wrist': (-1.468, -9.657),
+    })
+    human.KeyJoints(35.8, {
+        'right_clavicle': (17.343, 14.844), 'right_shoulder': (51.22, 12.585, 19.406),
+        'right_elbow': (22.456, 29.016), 'right_wrist': (1.648, -24.341),
+    })
+    human.KeyJoints(35.9, {
+        'right_clavicle': (19.958, 12.399), 'right_shoulder': (50.992, 9.491, 21.082),
+        'right_elbow': (25.255, 30.577), 'right_wrist': (2.16, -26.962),
+    })
+    human.KeyJoints(36.0, {
+        'right_clavicle': (0.882, 8.698), 'right_shoulder': (46.222, 7.984, 8.501),
+        'right_elbow': (26.495, 17.274), 'right_wrist': (-1.654, -14.769),
+    })
+    human.KeyJoints(36.1, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.278, 17.757, 4.037),
+        'right_elbow': (17.52, 13.706), 'right_wrist': (-2.063, -4.876),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(36.2, {
+        'right_clavicle': (-9.342, 15.0), 'right_shoulder': (49.672, 17.708, 4.508),
+        'right_elbow': (16.698, 13.859), 'right_wrist': (-1.789, -4.855),
+    })
+    human.KeyJoints(36.3, {
+        'right_clavicle': (10.154, 14.39), 'right_shoulder': (49.709, 13.309, 14.392),
+        'right_elbow': (21.4, 23.766), 'right_wrist': (0.083, -19.753),
+    })
+    human.KeyJoints(36.4, {
+        'right_clavicle': (19.188, 14.991), 'right_shoulder': (51.81, 12.639, 21.257),
+        'right_elbow': (22.961, 31.071), 'right_wrist': (2.265, -25.662),
+    })
+    human.KeyJoints(36.5, {
+        'right_clavicle': (12.425, 6.768), 'right_shoulder': (47.173, 4.321, 15.099),
+        'right_elbow': (28.404, 23.566), 'right_wrist': (0.088, -23.377),
+    })
+    human.KeyJoints(36.6, {
+        'right_clavicle': (-8.614, 13.878), 'right_shoulder': (47.772, 15.837, 4.089),
+        'right_elbow': (20.868, 13.767), 'right_wrist': (-2.328, -6.894),
+    })
+    human.KeyJoints(36.7, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.931, 17.81, 4.256),
+        'right_elbow': (16.187, 13.614), 'right_wrist': (-1.816, -4.167),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(36.8, {
+        'right_clavicle': (-0.285, 14.538), 'right_shoulder': (48.901, 15.447, 8.599),
+        'right_elbow': (19.442, 17.868), 'right_wrist': (-1.219, -12.076),
+    })
+    human.KeyJoints(36.9, {
+        'right_clavicle': (18.414, 14.937), 'right_shoulder': (51.555, 12.601, 20.425),
+        'right_elbow': (22.699, 30.129), 'right_wrist': (1.99, -25.071),
+    })
+    human.KeyJoints(37.0, {
+        'right_clavicle': (19.631, 10.53), 'right_shoulder': (50.236, 7.457, 20.397),
+        'right_elbow': (26.485, 29.593), 'right_wrist': (1.889, -27.04),
+    })
+    human.KeyJoints(37.1, {
+        'right_clavicle': (-2.432, 10.123), 'right_shoulder': (46.39, 10.152, 6.818),
+        'right_elbow': (25.183, 15.852), 'right_wrist': (-1.998, -12.136),
+    })
+    human.KeyJoints(37.2, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.551, 17.786, 4.088),
+        'right_elbow': (16.953, 13.693), 'right_wrist': (-1.976, -4.57),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.3, {
+        'right_clavicle': (-8.143, 15.0), 'right_shoulder': (49.288, 17.488, 4.984),
+        'right_elbow': (17.483, 14.325), 'right_wrist': (-1.736, -6.024),
+    })
+    human.KeyJoints(37.4, {
+        'right_clavicle': (13.105, 14.511), 'right_shoulder': (50.218, 12.915, 16.311),
+        'right_elbow': (21.862, 25.763), 'right_wrist': (0.641, -21.745),
+    })
+    human.KeyJoints(37.5, {
+        'right_clavicle': (19.389, 14.834), 'right_shoulder': (51.683, 12.391, 21.245),
+        'right_elbow': (23.3, 31.051), 'right_wrist': (2.249, -25.874),
+    })
+    human.KeyJoints(37.6, {
+        'right_clavicle': (8.691, 6.737), 'right_shoulder': (46.533, 4.571, 12.826),
+        'right_elbow': (28.328, 21.271), 'right_wrist': (-0.574, -20.735),
+    })
+    human.KeyJoints(37.7, {
+        'right_clavicle': (-9.366, 14.473), 'right_shoulder': (48.296, 16.81, 3.976),
+        'right_elbow': (19.595, 13.688), 'right_wrist': (-2.316, -5.99),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.8, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.932, 17.81, 4.257),
+        'right_elbow': (16.185, 13.613), 'right_wrist': (-1.815, -4.166),
+    })
+    human.KeyJoints(37.9, {
+        'right_clavicle': (3.207, 14.393), 'right_shoulder': (49.022, 14.618, 10.4),
+        'right_elbow': (20.132, 19.675), 'right_wrist': (-0.879, -14.705),
+    })
+    human.KeyJoints(38.0, {
+        'right_clavicle': (18.962, 14.983), 'right_shoulder': (51.749, 12.634, 21.024),
+        'right_elbow': (22.866, 30.796), 'right_wrist': (2.191, -25.483),
+    })
+    human.KeyJoints(38.1, {
+        'right_clavicle': (18.157, 8.729), 'right_shoulder': (49.234, 5.647, 19.09),
+        'right_elbow': (27.55, 27.98), 'right_wrist': (1.41, -26.753),
+    })
+    human.KeyJoints(38.2, {
+        'right_clavicle': (-5.198, 11.577), 'right_shoulder': (46.782, 12.344, 5.483),
+        'right_elbow': (23.738, 14.784), 'right_wrist': (-2.244, -9.91),
+    })
+    human.KeyJoints(38.3, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.748, 17.802, 4.154),
+        'right_elbow': (16.548, 13.664), 'right_wrist': (-1.904, -4.354),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.4, {
+        'right_clavicle': (-6.193, 14.956), 'right_shoulder': (49.024, 17.037, 5.81),
+        'right_elbow': (18.197, 15.129), 'right_wrist': (-1.637, -7.648),
+    })
+    human.KeyJoints(38.5, {
+        'right_clavicle': (15.519, 14.673), 'right_shoulder': (50.748, 12.686, 18.015),
+        'right_elbow': (22.205, 27.549), 'right_wrist': (1.181, -23.269),
+    })
+    human.KeyJoints(38.6, {
+        'right_clavicle': (19.904, 13.939), 'right_shoulder': (51.462, 11.278, 21.302),
+        'right_elbow': (24.103, 30.995), 'right_wrist': (2.254, -26.391),
+    })
+    human.KeyJoints(38.7, {
+        'right_clavicle': (4.715, 7.526), 'right_shoulder': (46.174, 6.07, 10.566),
+        'right_elbow': (27.557, 19.122), 'right_wrist': (-1.171, -17.735),
+    })
+    human.KeyJoints(38.8, {
+        'right_clavicle': (-9.824, 14.852), 'right_shoulder': (48.848, 17.473, 4.0),
+        'right_elbow': (18.406, 13.699), 'right_wrist': (-2.193, -5.333),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.9, {
+        'right_clavicle': (-9.892, 15.0), 'right_shoulder': (49.888, 17.794, 4.297),
+        'right_elbow': (16.272, 13.653), 'right_wrist': (-1.811, -4.281),
+    })
+    human.KeyJoints(39.0, {
+        'right_clavicle': (6.748, 14.347), 'right_shoulder': (49.29, 13.89, 12.357),
+        'right_elbow': (20.803, 21.668), 'right_wrist': (-0.444, -17.323),
+    })
+    human.KeyJoints(39.1, {
+        'right_clavicle': (19.153, 14.999), 'right_shoulder': (51.821, 12.652, 21.248),
+        'right_elbow': (22.931, 31.048), 'right_wrist': (2.267, -25.633),
+    })
+    human.KeyJoints(39.2, {
+        'right_clavicle': (15.689, 7.309), 'right_shoulder': (48.142, 4.347, 17.265),
+        'right_elbow': (28.316, 25.893), 'right_wrist': (0.78, -25.443),
+    })
+    human.KeyJoints(39.3, {
+        'right_clavicle': (-7.168, 12.817), 'right_shoulder': (47.25, 14.223, 4.651),
+        'right_elbow': (22.295, 14.161), 'right_wrist': (-2.317, -8.21),
+    })
+    human.KeyJoints(39.4, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.872, 17.809, 4.216),
+        'right_elbow': (16.3, 13.634), 'right_wrist': (-1.848, -4.224),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(39.5, {
+        'right_clavicle': (-3.53, 14.746), 'right_shoulder': (48.91, 16.301, 7.025),
+        'right_elbow': (18.777, 16.314), 'right_wrist': (-1.471, -9.619),
+    })
+    human.KeyJoints(39.6, {
+        'right_clavicle': (17.319, 14.842), 'right_shoulder': (51.213, 12.585, 19.386),
+        'right_elbow': (22.452, 28.994), 'right_wrist': (1.641, -24.326),
+    })
+    human.KeyJoints(39.7, {
+        'right_clavicle': (19.958, 12.43), 'right_shoulder': (51.002, 9.526, 21.09),
+        'right_elbow': (25.234, 30.59), 'right_wrist': (2.163, -26.954),
+    })
+    human.KeyJoints(39.8, {
+        'right_clavicle': (0.944, 8.675), 'right_shoulder': (46.22, 7.948, 8.533),
+        'right_elbow': (26.516, 17.302), 'right_wrist': (-1.647, -14.817),
+    })
+    human.KeyJoints(39.9, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.272, 17.756, 4.036),
+        'right_elbow': (17.531, 13.706), 'right_wrist': (-2.065, -4.882),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.0, {
+        'right_clavicle': (-9.356, 15.0), 'right_shoulder': (49.678, 17.71, 4.502),
+        'right_elbow': (16.687, 13.854), 'right_wrist': (-1.79, -4.841),
+    })
+    human.KeyJoints(40.1, {
+        'right_clavicle': (10.1, 14.389), 'right_shoulder': (49.701, 13.317, 14.358),
+        'right_elbow': (21.391, 23.732), 'right_wrist': (0.073, -19.716),
+    })
+    human.KeyJoints(40.2, {
+        'right_clavicle': (19.186, 14.992), 'right_shoulder': (51.811, 12.641, 21.258),
+        'right_elbow': (22.958, 31.071), 'right_wrist': (2.266, -25.661),
+    })
+    human.KeyJoints(40.3, {
+        'right_clavicle': (12.486, 6.774), 'right_shoulder': (47.188, 4.32, 15.138),
+        'right_elbow': (28.404, 23.606), 'right_wrist': (0.1, -23.419),
+    })
+    human.KeyJoints(40.4, {
+        'right_clavicle': (-8.595, 13.864), 'right_shoulder': (47.763, 15.815, 4.095),
+        'right_elbow': (20.891, 13.771), 'right_wrist': (-2.328, -6.913),
+    })
+    human.KeyJoints(40.5, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.931, 17.81, 4.255),
+        'right_elbow': (16.187, 13.614), 'right_wrist': (-1.816, -4.167),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.6, {
+        'right_clavicle': (-0.342, 14.541), 'right_shoulder': (48.9, 15.462, 8.571),
+        'right_elbow': (19.431, 17.84), 'right_wrist': (-1.224, -12.033),
+    })
+    human.KeyJoints(40.7, {
+        'right_clavicle': (18.401, 14.936), 'right_shoulder': (51.551, 12.601, 20.411),
+        'right_elbow': (22.696, 30.113), 'right_wrist': (1.985, -25.062),
+    })
+    human.KeyJoints(40.8, {
+        'right_clavicle': (19.65, 10.564), 'right_shoulder': (50.252, 7.492, 20.415),
+        'right_elbow': (26.465, 29.616), 'right_wrist': (1.896, -27.042),
+    })
+    human.KeyJoints(40.9, {
+        'right_clavicle': (-2.382, 10.099), 'right_shoulder': (46.386, 10.116, 6.842),
+        'right_elbow': (25.206, 15.872), 'right_wrist': (-1.993, -12.176),
+    })
+    human.KeyJoints(41.0, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.547, 17.786, 4.087),
+        'right_elbow': (16.961, 13.693), 'right_wrist': (-1.977, -4.575),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(41.1, {
+        'right_clavicle': (-8.169, 15.0), 'right_shoulder': (49.295, 17.493, 4.973),
+        'right_elbow': (17.469, 14.315), 'right_wrist': (-1.738, -6.0),
+    })
+    human.KeyJoints(41.2, {
+        'right_clavicle': (13.06, 14.509), 'right_shoulder': (50.209, 12.92, 16.28),
+        'right_elbow': (21.855, 25.73), 'right_wrist': (0.632, -21.716),
+    })
+    human.KeyJoints(41.3, {
+        'right_clavicle': (19.384, 14.839), 'right_shoulder': (51.686, 12.398, 21.245),
+        'right_elbow': (23.293, 31.052), 'right_wrist': (2.249, -25.869),
+    })
+    human.KeyJoints(41.4, {
+        'right_clavicle': (8.757, 6.729), 'right_shoulder': (46.542, 4.556, 12.865),
+        'right_elbow': (28.335, 21.309), 'right_wrist': (-0.563, -20.783),
+    })
+    human.KeyJoints(41.5, {
+        'right_clavicle': (-9.356, 14.465), 'right_shoulder': (48.286, 16.797, 3.975),
+        'right_elbow': (19.616, 13.688), 'right_wrist': (-2.317, -6.003),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(41.6, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.932, 17.81, 4.257),
+        'right_elbow': (16.185, 13.613), 'right_wrist': (-1.815, -4.166),
+    })
+    human.KeyJoints(41.7, {
+        'right_clavicle': (3.147, 14.395), 'right_shoulder': (49.019, 14.631, 10.368),
+        'right_elbow': (20.12, 19.642), 'right_wrist': (-0.886, -14.66),
+    })
+    human.KeyJoints(41.8, {
+        'right_clavicle': (18.957, 14.983), 'right_shoulder': (51.747, 12.634, 21.017),
+        'right_elbow': (22.864, 30.789), 'right_wrist': (2.189, -25.478),
+    })
+    human.KeyJoints(41.9, {
+        'right_clavicle': (18.188, 8.757), 'right_shoulder': (49.252, 5.674, 19.116),
+        'right_elbow': (27.534, 28.011), 'right_wrist': (1.419, -26.765),
+    })
+    human.KeyJoints(42.0, {
+        'right_clavicle': (-5.157, 11.554), 'right_shoulder': (46.774, 12.309, 5.502),
+        'right_elbow': (23.763, 14.799), 'right_wrist': (-2.241, -9.944),
+    })
+    human.KeyJoints(42.1, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.745, 17.802, 4.153),
+        'right_elbow': (16.554, 13.664), 'right_wrist': (-1.905, -4.357),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.2, {
+        'right_clavicle': (-6.232, 14.959), 'right_shoulder': (49.027, 17.048, 5.792),
+        'right_elbow': (18.187, 15.112), 'right_wrist': (-1.639, -7.619),
+    })
+    human.KeyJoints(42.3, {
+        'right_clavicle': (15.483, 14.671), 'right_shoulder': (50.739, 12.688, 17.989),
+        'right_elbow': (22.201, 27.521), 'right_wrist': (1.173, -23.247),
+    })
+    human.KeyJoints(42.4, {
+        'right_clavicle': (19.899, 13.96), 'right_shoulder': (51.467, 11.303, 21.302),
+        'right_elbow': (24.086, 30.997), 'right_wrist': (2.254, -26.381),
+    })
+    human.KeyJoints(42.5, {
+        'right_clavicle': (4.78, 7.51), 'right_shoulder': (46.176, 6.041, 10.602),
+        'right_elbow': (27.572, 19.155), 'right_wrist': (-1.162, -17.785),
+    })
+    human.KeyJoints(42.6, {
+        'right_clavicle': (-9.818, 14.847), 'right_shoulder': (48.84, 17.464, 4.0),
+        'right_elbow': (18.424, 13.699), 'right_wrist': (-2.196, -5.342),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.7, {
+        'right_clavicle': (-9.896, 15.0), 'right_shoulder': (49.89, 17.795, 4.296),
+        'right_elbow': (16.268, 13.651), 'right_wrist': (-1.811, -4.276),
+    })
+    human.KeyJoints(42.8, {
+        'right_clavicle': (6.689, 14.347), 'right_shoulder': (49.284, 13.902, 12.323),
+        'right_elbow': (20.792, 21.633), 'right_wrist': (-0.452, -17.28),
+    })
+    human.KeyJoints(42.9, {
+        'right_clavicle': (19.152, 14.998), 'right_shoulder': (51.82, 12.652, 21.246),
+        'right_elbow': (22.931, 31.047), 'right_wrist': (2.266, -25.632),
+    })
+    human.KeyJoints(43.0, {
+        'right_clavicle': (15.736, 7.324), 'right_shoulder': (48.159, 4.356, 17.298),
+        'right_elbow': (28.31, 25.93), 'right_wrist': (0.791, -25.471),
+    })
+    human.KeyJoints(43.1, {
+        'right_clavicle': (-7.14, 12.798), 'right_shoulder': (47.242, 14.193, 4.662),
+        'right_elbow': (22.319, 14.169), 'right_wrist': (-2.316, -8.234),
+    })
+    human.KeyJoints(43.2, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.87, 17.808, 4.215),
+        'right_elbow': (16.303, 13.634), 'right_wrist': (-1.849, -4.225),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.3, {
+        'right_clavicle': (-3.579, 14.749), 'right_shoulder': (48.911, 16.315, 7.002),
+        'right_elbow': (18.767, 16.291), 'right_wrist': (-1.475, -9.581),
+    })
+    human.KeyJoints(43.4, {
+        'right_clavicle': (17.295, 14.839), 'right_shoulder': (51.206, 12.586, 19.366),
+        'right_elbow': (22.448, 28.973), 'right_wrist': (1.634, -24.31),
+    })
+    human.KeyJoints(43.5, {
+        'right_clavicle': (19.958, 12.461), 'right_shoulder': (51.013, 9.56, 21.098),
+        'right_elbow': (25.212, 30.602), 'right_wrist': (2.166, -26.945),
+    })
+    human.KeyJoints(43.6, {
+        'right_clavicle': (1.006, 8.651), 'right_shoulder': (46.218, 7.911, 8.566),
+        'right_elbow': (26.538, 17.331), 'right_wrist': (-1.64, -14.866),
+    })
+    human.KeyJoints(43.7, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.267, 17.755, 4.036),
+        'right_elbow': (17.542, 13.706), 'right_wrist': (-2.066, -4.888),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.8, {
+        'right_clavicle': (-9.37, 15.0), 'right_shoulder': (49.683, 17.712, 4.497),
+        'right_elbow': (16.677, 13.849), 'right_wrist': (-1.79, -4.826),
+    })
+    human.KeyJoints(43.9, {
+        'right_clavicle': (10.046, 14.387), 'right_shoulder': (49.693, 13.326, 14.325),
+        'right_elbow': (21.382, 23.697), 'right_wrist': (0.064, -19.678),
+    })
+    human.KeyJoints(44.0, {
+        'right_clavicle': (19.184, 14.993), 'right_shoulder': (51.812, 12.643, 21.258),
+        'right_elbow': (22.955, 31.072), 'right_wrist': (2.266, -25.659),
+    })
+    human.KeyJoints(44.1, {
+        'right_clavicle': (12.547, 6.78), 'right_shoulder': (47.202, 4.319, 15.176),
+        'right_elbow': (28.403, 23.646), 'right_wrist': (0.112, -23.461),
+    })
+    human.KeyJoints(44.2, {
+        'right_clavicle': (-8.576, 13.849), 'right_shoulder': (47.754, 15.792, 4.102),
+        'right_elbow': (20.914, 13.775), 'right_wrist': (-2.328, -6.931),
+    })
+    human.KeyJoints(44.3, {
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (49.93, 17.81, 4.255),
+        'right_elbow': (16.188, 13.614), 'right_wrist': (-1.816, -4.168),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(44.4, {
+        'right_clavicle': (-3.903, 14.772), 'right_shoulder': (48.919, 16.403, 6.851),
+        'right_elbow': (18.697, 16.143), 'right_wrist': (-1.497, -9.337),
+    })
+    human.KeyJoints(44.5, {
+        'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
+        'neck': (27.886, -0.024, -10.49), 'head': (12.886, -1.196),
+        'right_clavicle': (15.594, 14.68), 'right_shoulder': (50.766, 12.681, 18.07),
+        'right_elbow': (22.216, 27.606), 'right_wrist': (1.2, -23.314),
+    })
+    human.KeyJoints(44.6, {
+        'spine_lumbar': (-0.89, -19.888, 11.376), 'spine_thoracic': (-14.283, -9.545, 13.799),
+        'neck': (27.819, -0.017, -10.402), 'head': (12.819, -1.195),
+        'right_clavicle': (19.919, 14.215), 'right_shoulder': (51.707, 11.566, 21.414),
+        'right_elbow': (24.044, 31.111), 'right_wrist': (2.255, -26.478),
+    })
+    human.KeyJoints(44.7, {
+        'spine_lumbar': (4.92, -15.818, 9.936), 'spine_thoracic': (-10.439, -6.098, 10.386),
+        'neck': (24.874, 0.266, -6.766), 'head': (9.571, -1.193), 'right_clavicle': (11.391, 2.821),
+        'right_shoulder': (50.711, -3.165, 13.775), 'right_elbow': (38.383, 21.274),
+        'right_wrist': (-1.123, -27.942),
+    })
+    human.KeyJoints(44.8, {
+        'spine_lumbar': (6.998, -14.013, 9.64), 'spine_thoracic': (-8.586, -4.521, 9.201),
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.73, 7.941),
+        'right_shoulder': (55.848, 2.166, 10.943), 'right_elbow': (34.071, 18.507),
+        'right_wrist': (-1.361, -21.581),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)
+    human.KeyJoints(44.9, {
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
+        'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
+        'right_wrist': (-1.15, -21.055),
+    })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
     human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
-    human.KeyJoints(45.0, {'neck': (23.271, -0.26, -10.041), 'head': (7.587, -1.211)})
+    human.KeyJoints(45.0, {
+        'spine_lumbar': (6.922, -13.948, 9.6), 'neck': (23.271, -0.26, -10.041),
+        'head': (7.587, -1.211),
+    })
     human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
         'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
-        'right_shoulder': (56.302, 2.111, 11.17), 'right_elbow': (33.176, 18.453),
-        'right_wrist': (-1.155, -21.049),
+        'right_clavicle': (2.794, 7.882), 'right_shoulder': (56.302, 2.111, 11.17),
+        'right_elbow': (33.176, 18.453), 'right_wrist': (-1.155, -21.049),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
     human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
@@ -3189,9 +2644,9 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
-        'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
-        'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
-        'left_elbow': (20.451, 18.166), 'left_wrist': (0.905, -5.539),
+        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.775, 22.837),
+        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.719, -29.213, 14.723),
+        'left_elbow': (20.479, 18.166), 'left_wrist': (0.904, -5.537),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -3199,36 +2654,36 @@ def remove_access_panel_cad():
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
-        'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
-        'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
+        'right_shoulder': (29.748, 35.989, -9.049), 'right_elbow': (91.373, 22.868),
+        'right_wrist': (-12.54, -14.334), 'left_shoulder': (83.084, -28.036, 15.61),
+        'left_elbow': (27.221, 17.668), 'left_wrist': (0.209, -4.18),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
-        'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
-        'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
+        'right_shoulder': (19.97, 31.61, -7.109), 'right_elbow': (93.772, 22.959),
+        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.642, -24.748, 18.136),
+        'left_elbow': (43.254, 16.182), 'left_wrist': (-1.722, -0.547),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
-        'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
-        'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
+        'right_shoulder': (5.321, 24.375, -3.194), 'right_elbow': (97.715, 23.079),
+        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.503, -19.649, 21.337),
+        'left_elbow': (62.42, 14.158), 'left_wrist': (-4.471, 3.877),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
-        'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
-        'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
+        'right_shoulder': (-8.226, 15.952, 2.926), 'right_elbow': (99.624, 23.159),
+        'right_wrist': (-12.531, -11.14), 'left_shoulder': (20.919, -12.952, 23.562),
+        'left_elbow': (78.036, 12.531), 'left_wrist': (-7.449, 7.525),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
-        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
-        'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
+        'right_shoulder': (-15.566, 9.215, 10.058), 'right_elbow': (100.11, 23.131),
+        'right_wrist': (-11.52, -10.444), 'left_shoulder': (7.028, -5.041, 23.588),
+        'left_elbow': (88.729, 11.493), 'left_wrist': (-10.751, 10.539),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
-        'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
-        'left_elbow': (95.405, 11.706), 'left_wrist': (-11.963, 12.632),
+        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.155),
+        'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
+        'left_elbow': (95.414, 11.693), 'left_wrist': (-11.973, 12.631),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)

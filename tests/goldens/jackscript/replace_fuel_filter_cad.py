@@ -11,8 +11,8 @@ def replace_fuel_filter_cad():
     LoadModel('models/fuel_filter_bay.glb', name='bay', transform=((100.0, 0.0, 0.0, 0.0), (0.0, 100.0, 0.0, 0.0), (0.0, 0.0, 100.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
-    # examples/replace_fuel_filter_cad.mtask:34:5 replace_fuel_filter_cad > walk_to > travel: locomotion on root at skid_front
-    human.Walk((0.119, 0.0, 55.134), start=0.0, duration=1.294737)
+    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > walk_to > travel: locomotion on root at skid_front
+    human.Walk((0.128, 0.0, 55.129), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -23,167 +23,166 @@ def replace_fuel_filter_cad():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.294, 90.495, 1.183), (-0.49, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.324, 90.52, 1.184), (-0.371, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.222, 0.076, 0.544), 'right_knee': (28.313,), 'right_ankle': (8.726, 0.208),
-        'left_hip': (6.795, -0.142, -0.51), 'left_knee': (14.386,), 'left_ankle': (7.592, -0.202),
+        'right_hip': (14.182, 0.124, 0.436), 'right_knee': (28.252,), 'right_ankle': (8.664, 0.228),
+        'left_hip': (6.672, -0.177, -0.394), 'left_knee': (14.107,), 'left_ankle': (7.437, -0.222),
     })
-    human.KeyRoot(0.2, (0.951, 90.027, 4.314), (-1.723, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.045, 90.052, 4.32), (-1.306, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (18.088, 0.078, 1.977), 'right_knee': (39.149,), 'right_ankle': (10.223, 0.7),
-        'left_hip': (6.318, -0.46, -1.785), 'left_knee': (18.078,), 'left_ankle': (11.776, -0.653),
+        'right_hip': (18.046, 0.267, 1.613), 'right_knee': (39.15,), 'right_ankle': (10.182, 0.768),
+        'left_hip': (6.259, -0.572, -1.376), 'left_knee': (17.871,), 'left_ankle': (11.627, -0.719),
     })
-    human.KeyRoot(0.3, (1.631, 89.823, 8.763), (-3.348, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.792, 89.823, 8.781), (-2.537, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (24.391, 0.228, 2.385), 'right_knee': (47.444,),
-        'right_ankle': (15.803, 1.215), 'left_hip': (2.952, -0.944, -3.407), 'left_knee': (17.706,),
-        'left_ankle': (14.527, -1.117),
+        'right_hip': (24.357, 0.531, 2.031), 'right_knee': (47.502,), 'right_ankle': (15.84, 1.342),
+        'left_hip': (3.053, -1.097, -2.604), 'left_knee': (17.77,), 'left_ankle': (14.483, -1.233),
     })
-    human.KeyRoot(0.4, (1.993, 89.753, 13.903), (-5.012, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.19, 89.803, 13.941), (-3.797, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (30.679, 0.462, 0.632), 'right_knee': (43.037,),
-        'right_ankle': (10.984, 0.722), 'left_hip': (6.125, -0.812, -5.309), 'left_knee': (30.782,),
-        'left_ankle': (17.223, -1.382),
+        'right_hip': (30.561, 0.786, 0.752), 'right_knee': (42.874,),
+        'right_ankle': (10.931, 1.061), 'left_hip': (6.105, -1.087, -4.134), 'left_knee': (30.526,),
+        'left_ankle': (17.032, -1.53),
     })
-    human.KeyRoot(0.5, (1.683, 89.148, 22.675), (-7.029, 0.0, 0.0))
+    human.KeyRoot(0.5, (1.844, 89.198, 22.806), (-5.325, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (29.874, -0.266, -1.555), 'right_knee': (29.109,),
-        'right_ankle': (-0.787, -1.01), 'left_hip': (7.872, -0.091, -7.535), 'left_knee': (45.126,),
-        'left_ankle': (16.611, -1.196),
+        'right_hip': (29.756, 0.168, -0.963), 'right_knee': (28.943,),
+        'right_ankle': (-0.848, -0.337), 'left_hip': (7.856, -0.451, -5.911),
+        'left_knee': (44.884,), 'left_ankle': (16.538, -1.336),
     })
-    human.KeyRoot(0.6, (0.832, 88.559, 34.928), (-9.383, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.898, 88.564, 35.215), (-7.108, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (20.011, -1.449, -1.543), 'right_knee': (12.289,),
-        'right_ankle': (-7.716, -1.893), 'left_hip': (2.888, 0.04, -9.703), 'left_knee': (49.757,),
-        'left_ankle': (12.164, -0.544),
+        'right_hip': (20.218, -0.893, -1.099), 'right_knee': (12.932,),
+        'right_ankle': (-7.3, -1.22), 'left_hip': (2.831, -0.157, -7.485), 'left_knee': (49.578,),
+        'left_ankle': (12.299, -0.636),
     })
-    human.KeyRoot(0.7, (-0.049, 88.715, 40.902), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.072, 88.715, 41.208), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (19.235, -1.72, -0.6), 'right_knee': (18.399,),
-        'right_ankle': (-0.837, -1.822), 'left_hip': (0.982, 0.298, -10.319),
-        'left_knee': (51.349,), 'left_ankle': (5.847, 0.164),
+        'right_hip': (19.315, -1.301, -0.456), 'right_knee': (18.85,),
+        'right_ankle': (-0.47, -1.379), 'left_hip': (0.933, 0.221, -7.815), 'left_knee': (51.187,),
+        'left_ankle': (6.066, 0.129),
     })
-    human.KeyRoot(0.8, (-1.01, 89.016, 41.097), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.111, 89.016, 41.345), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.77, -2.333, -0.747), 'right_knee': (15.977,),
-        'right_ankle': (-1.785, -2.45), 'left_hip': (4.306, 1.326, -9.487), 'left_knee': (56.147,),
-        'left_ankle': (9.674, 0.803),
+        'right_hip': (17.883, -1.978, -0.638), 'right_knee': (16.375,),
+        'right_ankle': (-1.504, -2.078), 'left_hip': (4.346, 1.187, -7.002), 'left_knee': (56.038,),
+        'left_ankle': (9.871, 0.867),
     })
-    human.KeyRoot(0.9, (-1.895, 89.209, 41.212), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.06, 89.196, 41.423), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.691, -2.909, -0.869), 'right_knee': (14.21,),
-        'right_ankle': (-2.494, -3.036), 'left_hip': (13.44, 2.416, -6.829), 'left_knee': (56.858,),
-        'left_ankle': (18.918, 0.842),
+        'right_hip': (16.826, -2.603, -0.787), 'right_knee': (14.54,),
+        'right_ankle': (-2.273, -2.72), 'left_hip': (13.567, 2.215, -4.881), 'left_knee': (57.062,),
+        'left_ankle': (18.916, 1.101),
     })
-    human.KeyRoot(1.0, (-2.044, 89.193, 41.885), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.219, 89.193, 42.025), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.822, -2.921, -0.883), 'right_knee': (15.409,),
-        'right_ankle': (-1.393, -3.052), 'left_hip': (20.431, 2.453, -3.097),
-        'left_knee': (46.712,), 'left_ankle': (18.93, 1.224),
+        'right_hip': (16.918, -2.652, -0.806), 'right_knee': (15.582,),
+        'right_ankle': (-1.319, -2.772), 'left_hip': (20.455, 2.292, -2.116),
+        'left_knee': (46.689,), 'left_ankle': (18.928, 1.418),
     })
-    human.KeyRoot(1.1, (-1.338, 89.461, 46.51), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.452, 89.461, 46.574), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (15.539, -1.908, -0.53), 'right_knee': (19.017,),
-        'right_ankle': (3.487, -1.98), 'left_hip': (20.08, 1.711, -0.305), 'left_knee': (33.199,),
-        'left_ankle': (13.246, 1.503),
+        'right_hip': (15.581, -1.736, -0.484), 'right_knee': (19.051,),
+        'right_ankle': (3.478, -1.803), 'left_hip': (20.106, 1.588, -0.124), 'left_knee': (33.197,),
+        'left_ankle': (13.224, 1.448),
     })
-    human.KeyRoot(1.2, (-0.422, 90.158, 52.336), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.458, 90.158, 52.352), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (10.698, -0.607, -0.115), 'right_knee': (17.017,),
-        'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115), 'left_knee': (17.002,),
-        'left_ankle': (6.31, 0.618),
+        'right_hip': (10.71, -0.553, -0.105), 'right_knee': (17.018,),
+        'right_ankle': (6.309, -0.563), 'left_hip': (10.702, 0.553, 0.105), 'left_knee': (17.003,),
+        'left_ankle': (6.3, 0.563),
     })
-    # examples/replace_fuel_filter_cad.mtask:35:5 replace_fuel_filter_cad > kneel: posture on root
-    human.KeyRoot(1.3, (0.15, 91.079, 55.29), (-10.437, 0.0, 0.0))
+    # examples/replace_fuel_filter_cad.mtask:38:5 replace_fuel_filter_cad > kneel: posture on root
+    human.KeyRoot(1.3, (0.16, 91.079, 55.283), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.835, -0.843, 0.0), 'spine_thoracic': (0.091, -0.097, 0.0),
         'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
-        'right_hip': (3.123, 0.136, 0.007), 'right_knee': (5.471,), 'right_ankle': (2.344, 0.136),
-        'left_hip': (3.12, -0.136, -0.007), 'left_knee': (5.464,), 'left_ankle': (2.339, -0.136),
+        'right_hip': (3.123, 0.134, 0.007), 'right_knee': (5.471,), 'right_ankle': (2.344, 0.135),
+        'left_hip': (3.12, -0.134, -0.007), 'left_knee': (5.464,), 'left_ankle': (2.339, -0.135),
     })
-    human.KeyRoot(1.4, (4.573, 90.565, 62.069), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (4.879, 90.565, 61.861), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (12.345, -12.349, 0.0), 'spine_thoracic': (1.917, -2.16, 0.0),
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
-        'right_hip': (1.455, 3.954, 0.088), 'right_knee': (10.267,), 'right_ankle': (8.796, 3.955),
-        'left_hip': (0.781, -3.952, -0.054), 'left_knee': (8.865,), 'left_ankle': (8.087, -3.953),
+        'right_hip': (1.454, 3.952, 0.088), 'right_knee': (10.265,), 'right_ankle': (8.795, 3.953),
+        'left_hip': (0.78, -3.951, -0.054), 'left_knee': (8.865,), 'left_ankle': (8.087, -3.951),
         'right_toes': (0.017,),
     })
-    human.KeyRoot(1.5, (8.298, 89.944, 66.87), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (8.812, 89.944, 66.493), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (2.846, -2.421, 0.0), 'spine_thoracic': (0.453, -0.396, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (5.323, 7.155, 1.741), 'right_knee': (34.173,), 'right_ankle': (20.0, 7.448),
-        'left_hip': (-3.805, -7.065, 0.469), 'left_knee': (5.191,), 'left_ankle': (8.966, -7.08),
+        'right_hip': (5.323, 7.154, 1.741), 'right_knee': (34.172,), 'right_ankle': (20.0, 7.447),
+        'left_hip': (-3.805, -7.064, 0.469), 'left_knee': (5.191,), 'left_ankle': (8.966, -7.079),
         'right_toes': (8.767,),
     })
-    human.KeyRoot(1.6, (8.51, 89.705, 68.197), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (9.083, 89.705, 67.808), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (4.261, -0.975, 0.0), 'spine_thoracic': (0.719, -0.141, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (-8.772, 7.087, 3.105), 'right_knee': (34.524,),
-        'right_ankle': (10.789, 7.757), 'left_hip': (-4.279, -7.387, 0.552), 'left_knee': (6.016,),
-        'left_ankle': (10.259, -7.407), 'right_toes': (32.728,),
+        'right_hip': (-8.773, 7.086, 3.105), 'right_knee': (34.523,),
+        'right_ankle': (10.789, 7.756), 'left_hip': (-4.279, -7.386, 0.552), 'left_knee': (6.016,),
+        'left_ankle': (10.259, -7.406), 'right_toes': (32.728,),
     })
-    human.KeyRoot(1.7, (9.813, 90.282, 58.306), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (9.948, 90.282, 57.87), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (28.473, -1.997, 0.0), 'spine_thoracic': (10.488, -0.294, 0.0),
-        'right_hip': (-14.761, 6.077, 5.177), 'right_knee': (28.907,),
-        'right_ankle': (-12.482, 7.545), 'left_hip': (4.094, -6.994, -0.499), 'left_knee': (9.09,),
-        'left_ankle': (5.027, -7.012), 'right_toes': (54.985,),
+        'right_hip': (-14.761, 6.076, 5.177), 'right_knee': (28.907,),
+        'right_ankle': (-12.482, 7.544), 'left_hip': (4.094, -6.993, -0.499), 'left_knee': (9.09,),
+        'left_ankle': (5.028, -7.011), 'right_toes': (54.985,),
     })
-    human.KeyRoot(1.8, (10.078, 88.38, 53.545), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (10.003, 88.38, 53.102), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (51.755, -3.371, 0.0), 'spine_thoracic': (5.547, -0.491, 0.0),
-        'right_hip': (-14.834, 5.641, 5.604), 'right_knee': (26.933,),
-        'right_ankle': (-17.962, 7.951), 'left_hip': (15.622, -6.509, -1.815),
-        'left_knee': (25.796,), 'left_ankle': (10.283, -6.756), 'right_toes': (59.998,),
+        'right_hip': (-14.834, 5.64, 5.604), 'right_knee': (26.933,),
+        'right_ankle': (-17.962, 7.95), 'left_hip': (15.622, -6.508, -1.815),
+        'left_knee': (25.797,), 'left_ankle': (10.283, -6.756), 'right_toes': (59.998,),
     })
-    human.KeyRoot(1.9, (10.05, 85.663, 47.729), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (9.719, 85.663, 47.293), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.9, {
         'spine_lumbar': (41.434, 6.066, 0.0), 'spine_thoracic': (-2.109, 1.265, 0.0),
-        'right_hip': (-14.153, 5.571, 2.549), 'right_knee': (27.717,), 'right_ankle': (3.21, 6.125),
-        'left_hip': (25.497, -5.61, -2.669), 'left_knee': (37.364,), 'left_ankle': (12.0, -6.21),
+        'right_hip': (-14.153, 5.57, 2.549), 'right_knee': (27.717,), 'right_ankle': (3.21, 6.124),
+        'left_hip': (25.498, -5.609, -2.669), 'left_knee': (37.364,), 'left_ankle': (12.0, -6.21),
         'right_toes': (38.771,),
     })
-    human.KeyRoot(2.0, (9.53, 85.535, 35.454), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (8.657, 85.535, 35.053), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.0, {
         'spine_lumbar': (18.691, 15.904, 0.0), 'spine_thoracic': (0.707, 2.864, 0.0),
         'right_hip': (-5.886, 4.04, 0.93), 'right_knee': (32.938,), 'right_ankle': (19.995, 4.145),
-        'left_hip': (29.115, -3.709, -2.063), 'left_knee': (27.714,),
+        'left_hip': (29.115, -3.708, -2.063), 'left_knee': (27.714,),
         'left_ankle': (-1.332, -4.243), 'right_toes': (18.83,),
     })
-    human.KeyRoot(2.1, (7.953, 81.981, 39.118), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (7.244, 81.981, 38.782), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.1, {
         'spine_lumbar': (4.283, 13.717, 0.0), 'spine_thoracic': (0.526, 2.465, 0.0),
-        'right_hip': (-0.355, 3.237, 1.842), 'right_knee': (49.659,), 'right_ankle': (20.0, 3.725),
+        'right_hip': (-0.355, 3.236, 1.842), 'right_knee': (49.659,), 'right_ankle': (20.0, 3.725),
         'left_hip': (36.344, -3.038, -2.231), 'left_knee': (46.788,),
         'left_ankle': (10.503, -3.769), 'right_toes': (30.018,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(2.2, (6.195, 73.021, 37.709), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.2, (5.425, 73.021, 37.452), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.2, {
         'spine_lumbar': (4.004, 8.343, 0.0), 'spine_thoracic': (0.631, 1.507, 0.0),
         'right_hip': (14.001, 1.42, 2.418), 'right_knee': (79.602,), 'right_ankle': (20.0, 2.806),
         'left_hip': (50.412, -1.634, -1.978), 'left_knee': (70.435,), 'left_ankle': (20.0, -2.566),
         'right_toes': (45.587,), 'left_toes': (0.072,),
     })
-    human.KeyRoot(2.3, (4.555, 59.529, 32.918), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.3, (3.576, 59.529, 32.739), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.3, {
         'spine_lumbar': (14.493, 1.435, 0.0), 'spine_thoracic': (2.393, 0.256, 0.0),
         'right_hip': (29.944, 0.004, 0.706), 'right_knee': (109.721,), 'right_ankle': (20.0, 0.706),
         'left_hip': (70.929, -0.144, -0.531), 'left_knee': (94.888,), 'left_ankle': (20.0, -0.55),
         'right_toes': (59.715,), 'left_toes': (3.979,),
     })
-    human.KeyRoot(2.4, (3.713, 42.365, 34.784), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.4, (2.816, 42.365, 34.64), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.4, {
         'spine_lumbar': (8.565, -0.044, 0.0), 'spine_thoracic': (1.433, -0.008, 0.0),
         'right_hip': (35.045, 0.012, -0.027), 'right_knee': (135.0,), 'right_ankle': (20.0, -0.029),
         'left_hip': (93.38, -0.005, 0.022), 'left_knee': (122.749,), 'left_ankle': (19.906, 0.023),
         'right_toes': (79.844,), 'left_toes': (9.447,),
     })
-    human.KeyRoot(2.5, (3.237, 41.13, 37.427), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.5, (2.458, 41.13, 37.301), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'spine_lumbar': (1.405, 0.025, 0.0), 'spine_thoracic': (0.218, 0.012, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
@@ -191,7 +190,7 @@ def replace_fuel_filter_cad():
         'left_hip': (94.236, 0.0, 0.0), 'left_knee': (127.019,), 'left_ankle': (20.0, 0.001),
         'right_toes': (86.743,), 'left_toes': (12.763,),
     })
-    human.KeyRoot(2.6, (2.97, 41.832, 38.548), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (2.241, 41.832, 38.433), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.6, {
         'spine_lumbar': (-10.741, 12.848, 0.0), 'spine_thoracic': (-6.196, 5.171, 0.0),
         'right_hip': (31.202, -0.074, -0.032), 'right_knee': (133.209,),
@@ -199,7 +198,7 @@ def replace_fuel_filter_cad():
         'left_knee': (127.895,), 'left_ankle': (3.938, 0.882), 'right_toes': (86.903,),
         'left_toes': (25.977,),
     })
-    human.KeyRoot(2.7, (2.444, 42.61, 39.819), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (1.771, 42.61, 39.726), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.7, {
         'spine_lumbar': (-28.157, 20.0, 0.0), 'spine_thoracic': (-6.508, 10.0, 0.0),
         'right_hip': (29.133, -0.429, -0.172), 'right_knee': (131.177,),
@@ -207,7 +206,7 @@ def replace_fuel_filter_cad():
         'left_knee': (127.407,), 'left_ankle': (-16.499, 21.194), 'right_toes': (86.718,),
         'left_toes': (41.248,),
     })
-    human.KeyRoot(2.8, (2.535, 42.888, 40.329), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.885, 42.888, 40.232), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.8, {
         'spine_lumbar': (-26.19, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_hip': (28.389, -0.201, -0.079), 'right_knee': (130.401,),
@@ -215,46 +214,46 @@ def replace_fuel_filter_cad():
         'left_knee': (134.551,), 'left_ankle': (-19.22, 28.142), 'right_toes': (86.822,),
         'left_toes': (40.74,),
     })
-    human.KeyRoot(2.9, (3.066, 41.13, 37.417), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.9, (2.287, 41.13, 37.299), (-7.907, 0.0, 0.0))
     human.KeyJoints(2.9, {
         'spine_lumbar': (-14.66, 20.0, 0.0), 'right_hip': (32.971, -0.209, -0.098),
         'right_knee': (134.986,), 'left_hip': (119.758, -25.0, 11.003), 'left_knee': (134.749,),
         'left_ankle': (-31.022, 21.615), 'left_toes': (33.332,),
     })
-    human.KeyRoot(3.0, (2.97, 41.308, 37.693), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (2.203, 41.308, 37.578), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.0, {
         'spine_lumbar': (-16.606, 20.0, 0.0), 'right_hip': (32.521, -0.265, -0.122),
         'right_knee': (134.546,), 'left_hip': (104.013, -23.385, 22.411), 'left_knee': (133.11,),
         'left_ankle': (-42.581, 18.58), 'left_toes': (44.69,),
     })
-    human.KeyRoot(3.1, (2.268, 43.458, 41.368), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.664, 43.458, 41.281), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.1, {
         'spine_lumbar': (-26.42, 20.0, 0.0), 'spine_thoracic': (-14.939, 10.0, 0.0),
         'right_hip': (26.776, -0.293, -0.107), 'right_knee': (128.789,),
         'right_ankle': (15.083, 0.2), 'left_hip': (83.258, -23.225, 26.785), 'left_knee': (135.0,),
         'left_ankle': (-45.775, 13.173), 'right_toes': (86.75,), 'left_toes': (57.709,),
     })
-    human.KeyRoot(3.2, (2.06, 43.389, 41.124), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.2, (1.445, 43.389, 41.046), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.2, {
         'spine_lumbar': (-24.513, 20.0, 0.0), 'spine_thoracic': (-8.768, 10.0, 0.0),
         'right_hip': (27.073, -0.609, -0.221), 'right_knee': (129.08,),
         'right_ankle': (15.089, 0.354), 'left_hip': (54.371, -21.058, 26.985),
         'left_ankle': (-50.0, 10.019), 'right_toes': (86.543,), 'left_toes': (72.268,),
     })
-    human.KeyRoot(3.3, (2.567, 42.686, 39.897), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.3, (1.898, 42.686, 39.799), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.3, {
         'spine_lumbar': (-13.404, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
         'right_hip': (29.021, -0.258, -0.105), 'right_knee': (131.014,),
         'right_ankle': (15.118, 0.183), 'left_hip': (40.638, -17.056, 7.742),
         'left_ankle': (-28.034, 18.006), 'right_toes': (86.713,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.4, (2.281, 43.183, 40.771), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.4, (1.65, 43.183, 40.684), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.4, {
         'spine_lumbar': (-16.357, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
         'right_knee': (129.644,), 'left_hip': (32.137, -4.273, 3.161), 'left_knee': (134.901,),
         'left_ankle': (1.976, 5.318), 'right_toes': (86.619,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.5, (2.415, 42.623, 39.8), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.5, (1.742, 42.623, 39.708), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.5, {
         'spine_lumbar': (-13.204, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
@@ -262,7 +261,7 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.087, 0.295), 'left_hip': (28.513, -2.105, 2.216),
         'left_knee': (131.944,), 'left_ankle': (17.15, 2.937), 'left_toes': (85.697,),
     })
-    human.KeyRoot(3.6, (3.015, 41.885, 38.62), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.6, (2.289, 41.885, 38.503), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.6, {
         'spine_lumbar': (-5.343, 20.0, 0.0), 'spine_thoracic': (-2.94, 9.54, 0.0),
         'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
@@ -270,789 +269,789 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.162, 0.003), 'left_hip': (31.075, 0.002, 0.001), 'left_knee': (133.104,),
         'left_ankle': (15.162, -0.003), 'left_toes': (86.736,),
     })
-    human.KeyRoot(3.7, (2.95, 42.105, 38.984), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.7, (2.24, 42.105, 38.869), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.7, {
         'spine_lumbar': (11.816, 9.529, 0.0), 'spine_thoracic': (1.845, 1.915, 0.0),
         'right_shoulder': (8.594, 6.136, 4.245), 'left_shoulder': (8.594, 6.136, 4.245),
         'right_hip': (30.503, 0.0, 0.0), 'right_knee': (132.532,), 'left_hip': (30.503, 0.0, 0.0),
         'left_knee': (132.532,), 'right_toes': (86.736,),
     })
-    # examples/replace_fuel_filter_cad.mtask:36:5 replace_fuel_filter_cad > look: gaze on head at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:39:5 replace_fuel_filter_cad > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.316667)
-    human.KeyRoot(3.8, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.8, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.8, {
         'spine_lumbar': (11.328, 0.01, 0.0), 'spine_thoracic': (1.908, 0.004, 0.0),
-        'neck': (0.049, -0.047, 0.026), 'head': (0.021, 0.015),
+        'neck': (0.049, -0.047, 0.024), 'head': (0.021, 0.015),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,), 'left_hip': (24.096, 0.0, 0.0),
         'left_knee': (126.122,),
     })
     human.KeyJoints(3.9, {
-        'neck': (9.267, -8.936, 4.966), 'head': (3.972, 2.943), 'right_toes': (86.654,),
+        'neck': (9.267, -8.936, 4.661), 'head': (3.972, 2.934), 'right_toes': (86.654,),
     })
-    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TA on r_arm at filter_bowl
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 12.722), 'head': (10.84, 8.007)})
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > reach: TA on r_arm at filter_bowl
     human.KeyJoints(4.1, {
-        'spine_lumbar': (11.381, 0.025, 0.022), 'spine_thoracic': (1.897, 0.018, 0.027),
-        'neck': (34.901, -33.655, 18.703), 'head': (14.958, 11.085),
-        'right_clavicle': (-0.011, 0.022), 'right_shoulder': (8.631, 5.753, 11.45),
+        'spine_lumbar': (11.381, 0.027, 0.02), 'spine_thoracic': (1.897, 0.018, 0.026),
+        'neck': (34.901, -33.655, 17.554), 'head': (14.958, 11.048),
+        'right_clavicle': (-0.011, 0.022), 'right_shoulder': (8.631, 5.754, 11.449),
         'right_elbow': (34.367, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: gaze on head at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (12.856, 0.448, 0.621), 'spine_thoracic': (1.587, 0.417, 0.779),
-        'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.311, 0.621),
-        'right_shoulder': (9.657, 6.413, 11.189), 'right_elbow': (34.062, 17.189),
-        'right_wrist': (-0.087, -0.101),
+        'spine_lumbar': (12.833, 0.495, 0.588), 'spine_thoracic': (1.582, 0.419, 0.759),
+        'neck': (35.0, -22.571, 13.675), 'head': (14.993, 7.34), 'right_clavicle': (-0.309, 0.623),
+        'right_shoulder': (9.65, 6.441, 11.179), 'right_elbow': (34.066, 17.189),
+        'right_wrist': (-0.091, -0.102),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (17.246, 1.715, 2.405), 'spine_thoracic': (0.657, 1.607, 3.026),
-        'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.209, 2.405),
-        'right_shoulder': (12.72, 8.375, 10.412), 'right_elbow': (33.156, 17.19),
-        'right_wrist': (-0.338, -0.392),
+        'spine_lumbar': (17.161, 1.896, 2.281), 'spine_thoracic': (0.637, 1.613, 2.951),
+        'neck': (35.0, 4.408, 3.749), 'head': (14.96, -1.685), 'right_clavicle': (-1.201, 2.415),
+        'right_shoulder': (12.696, 8.486, 10.374), 'right_elbow': (33.17, 17.19),
+        'right_wrist': (-0.351, -0.394),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (24.114, 3.743, 5.202), 'spine_thoracic': (-0.863, 3.471, 6.624),
-        'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.656, 5.201),
-        'right_shoulder': (17.579, 11.441, 9.197), 'right_elbow': (31.739, 17.192),
+        'spine_lumbar': (23.938, 4.138, 4.956), 'spine_thoracic': (-0.911, 3.489, 6.466),
+        'neck': (35.0, 28.197, -6.239), 'head': (14.885, -9.643), 'right_clavicle': (-2.64, 5.226),
+        'right_shoulder': (17.536, 11.684, 9.112), 'right_elbow': (31.766, 17.191),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (31.901, 6.259, 8.411), 'spine_thoracic': (-2.821, 5.614, 11.008),
-        'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.463, 8.404),
-        'right_shoulder': (23.346, 14.88, 7.818), 'right_elbow': (30.13, 17.194),
+        'spine_lumbar': (31.621, 6.889, 8.084), 'spine_thoracic': (-2.906, 5.644, 10.748),
+        'neck': (34.999, 32.558, -10.865), 'head': (13.516, -11.136),
+        'right_clavicle': (-4.431, 8.448), 'right_shoulder': (23.285, 15.283, 7.678),
+        'right_elbow': (30.173, 17.193),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (38.502, 9.113, 11.285), 'spine_thoracic': (-5.015, 7.553, 15.49),
-        'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.463, 11.25),
-        'right_shoulder': (28.872, 17.635, 6.647), 'right_elbow': (28.737, 17.197),
-        'right_wrist': (-1.544, -1.81),
+        'spine_lumbar': (38.115, 9.923, 10.987), 'spine_thoracic': (-5.135, 7.591, 15.101),
+        'neck': (35.0, 30.565, -13.736), 'head': (11.564, -10.0),
+        'right_clavicle': (-6.393, 11.304), 'right_shoulder': (28.79, 18.201, 6.452),
+        'right_elbow': (28.8, 17.195), 'right_wrist': (-1.614, -1.821),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (41.262, 12.215, 12.917), 'spine_thoracic': (-6.922, 8.711, 18.944),
-        'neck': (35.0, 12.864, -15.897), 'head': (15.0, -11.225),
-        'right_clavicle': (-8.386, 12.794), 'right_shoulder': (32.462, 18.304, 6.151),
-        'right_elbow': (28.03, 17.198), 'right_wrist': (-1.677, -2.032),
+        'spine_lumbar': (40.746, 13.068, 12.754), 'spine_thoracic': (-7.062, 8.744, 18.386),
+        'neck': (35.0, 30.902, -16.353), 'head': (10.484, -11.051),
+        'right_clavicle': (-8.251, 12.835), 'right_shoulder': (32.339, 18.999, 5.917),
+        'right_elbow': (28.123, 17.196), 'right_wrist': (-1.765, -2.042),
     })
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (40.751, 14.418, 13.242), 'spine_thoracic': (-7.87, 9.005, 20.455),
-        'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.56, 13.02),
-        'right_shoulder': (33.519, 17.462, 6.235),
+        'spine_lumbar': (40.037, 15.237, 13.165), 'spine_thoracic': (-7.996, 9.013, 19.73),
+        'neck': (35.0, 30.357, -18.818), 'head': (11.226, -11.146),
+        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.301, 18.164, 6.002),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (40.441, 15.04, 13.278), 'spine_thoracic': (-8.106, 9.053, 20.813),
-        'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.877, 13.025),
-        'right_shoulder': (33.713, 17.135, 6.288), 'right_elbow': (27.967, 17.197),
+        'spine_lumbar': (39.657, 15.845, 13.22), 'spine_thoracic': (-8.225, 9.05, 20.036),
+        'neck': (34.998, 30.285, -19.238), 'head': (13.21, -11.169),
+        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.459, 17.83, 6.059),
+        'right_elbow': (28.117, 17.195),
     })
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {'neck': (35.0, 27.038, -18.369)})
-    human.KeyJoints(5.1, {'right_wrist': (-1.593, -2.042)})
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
-    human.KeyJoints(5.3, {'right_elbow': (28.099, 12.274)})
+    human.KeyJoints(5.0, {
+        'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101),
+        'right_shoulder': (33.274, 17.845, 6.059), 'right_elbow': (28.425, 17.195),
+        'right_wrist': (-1.717, -1.983),
+    })
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
+    human.KeyJoints(5.2, {'right_elbow': (28.425, 17.164)})
+    human.KeyJoints(5.3, {'right_elbow': (28.465, 12.272)})
     human.KeyJoints(5.4, {
-        'right_shoulder': (33.668, 17.197, 6.273), 'right_elbow': (28.178, 0.654),
+        'right_shoulder': (33.283, 17.905, 6.043), 'right_elbow': (28.549, 0.652),
     })
-    human.KeyJoints(5.5, {'right_elbow': (28.259, -15.363)})
-    human.KeyJoints(5.6, {'right_elbow': (28.303, -33.45)})
-    human.KeyJoints(5.7, {'right_elbow': (28.294, -51.277)})
-    human.KeyJoints(5.8, {'right_elbow': (28.244, -66.515)})
+    human.KeyJoints(5.5, {'right_elbow': (28.636, -15.365)})
+    human.KeyJoints(5.6, {'right_elbow': (28.687, -33.451)})
+    human.KeyJoints(5.7, {'right_elbow': (28.682, -51.278)})
+    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515)})
     human.KeyJoints(5.9, {
-        'right_shoulder': (33.705, 17.587, 6.172), 'right_elbow': (28.191, -76.834),
+        'right_shoulder': (33.319, 18.306, 5.94), 'right_elbow': (28.582, -76.834),
     })
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.985897, duration=0.072)
-    human.KeyJoints(6.0, {'right_elbow': (28.172, -80.0)})
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
+    human.KeyJoints(6.0, {'right_elbow': (28.563, -80.0)})
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=6.057897, duration=0.2628)
-    human.KeyJoints(6.3, {'right_elbow': (28.172, -80.0)})
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
+    human.KeyJoints(6.3, {'right_elbow': (28.563, -80.0)})
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(6.4, {
-        'right_shoulder': (33.705, 17.581, 6.173), 'right_elbow': (28.199, -75.532),
+        'right_shoulder': (33.319, 18.3, 5.942), 'right_elbow': (28.589, -75.532),
+        'right_wrist': (-1.606, -1.974),
     })
-    human.KeyJoints(6.5, {'right_elbow': (28.272, -59.213)})
-    human.KeyJoints(6.6, {'right_elbow': (28.304, -34.545), 'right_wrist': (-1.582, -1.97)})
-    human.KeyJoints(6.7, {'right_elbow': (28.213, -5.363)})
+    human.KeyJoints(6.5, {'right_elbow': (28.662, -59.213)})
+    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545)})
+    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363), 'right_wrist': (-1.7, -1.946)})
     human.KeyJoints(6.8, {
-        'right_shoulder': (33.655, 17.117, 6.293), 'right_elbow': (28.002, 24.501),
+        'right_shoulder': (33.27, 17.826, 6.064), 'right_elbow': (28.363, 24.501),
     })
-    human.KeyJoints(6.9, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
-    human.KeyJoints(7.0, {'right_elbow': (27.588, 70.933)})
-    human.KeyJoints(7.1, {'neck': (35.0, 27.038, -18.369), 'right_elbow': (27.516, 79.835)})
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
+    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211)})
+    human.KeyJoints(7.0, {'right_elbow': (27.934, 70.933)})
+    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835), 'right_wrist': (-1.622, -2.046)})
+    # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
-    # examples/replace_fuel_filter_cad.mtask:39:9 replace_fuel_filter_cad > grasp: grip on r_hand
+    # examples/replace_fuel_filter_cad.mtask:42:9 replace_fuel_filter_cad > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=7.186814, duration=0.072)
-    # examples/replace_fuel_filter_cad.mtask:40:9 replace_fuel_filter_cad > reach: TA on l_arm at filter_bowl
-    # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
+    # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TA on l_arm at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
+    human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=1.873581)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (40.438, 15.048, 13.278), 'spine_thoracic': (-8.109, 9.053, 20.818),
-        'neck': (35.0, 27.063, -18.314), 'right_shoulder': (33.629, 17.124, 6.292),
-        'right_elbow': (27.516, 80.0), 'right_wrist': (-1.48, -2.045),
-        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.595, 5.729, 11.459),
+        'spine_lumbar': (39.652, 15.853, 13.221), 'spine_thoracic': (-8.228, 9.051, 20.039),
+        'neck': (34.97, 30.288, -18.996), 'head': (13.933, -11.098),
+        'right_shoulder': (33.247, 17.841, 6.06), 'right_elbow': (27.86, 80.0),
+        'right_wrist': (-1.622, -2.045), 'left_clavicle': (0.0, 0.001),
+        'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.903, 14.8, 13.049), 'spine_thoracic': (-8.273, 8.983, 20.657),
-        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.072),
-        'right_shoulder': (33.474, 16.721, 6.4), 'right_elbow': (28.338, 80.0),
-        'right_wrist': (-1.696, -1.978), 'left_clavicle': (-0.233, 0.357),
-        'left_shoulder': (9.112, 5.658, 11.425), 'left_elbow': (34.358, 17.188),
-        'left_wrist': (-0.007, -0.017),
+        'spine_lumbar': (40.136, 15.622, 12.988), 'spine_thoracic': (-8.389, 8.973, 19.884),
+        'neck': (34.466, 30.364, -17.661), 'head': (14.539, -10.905),
+        'right_clavicle': (-9.681, 13.043), 'right_shoulder': (33.103, 17.43, 6.171),
+        'right_elbow': (28.691, 80.0), 'right_wrist': (-1.841, -1.976),
+        'left_clavicle': (-0.233, 0.357), 'left_shoulder': (9.118, 5.653, 11.425),
+        'left_elbow': (34.357, 17.188), 'left_wrist': (-0.007, -0.017),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (42.944, 13.709, 12.047), 'spine_thoracic': (-8.992, 8.672, 19.952),
-        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.871, 13.278),
-        'right_shoulder': (32.745, 14.967, 6.877), 'right_elbow': (31.994, 80.0),
-        'right_wrist': (-2.662, -1.661), 'left_clavicle': (-1.256, 1.922),
-        'left_shoulder': (11.395, 5.343, 11.275),
+        'spine_lumbar': (42.26, 14.607, 11.967), 'spine_thoracic': (-9.096, 8.631, 19.203),
+        'neck': (34.204, 31.64, -14.638), 'head': (15.0, -11.246),
+        'right_clavicle': (-9.692, 13.252), 'right_shoulder': (32.427, 15.641, 6.659),
+        'right_elbow': (32.374, 80.0), 'right_wrist': (-2.817, -1.653),
+        'left_clavicle': (-1.253, 1.923), 'left_shoulder': (11.428, 5.318, 11.274),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (46.663, 11.722, 10.22), 'spine_thoracic': (-10.302, 8.106, 18.666),
-        'neck': (35.0, 33.59, -10.033), 'right_shoulder': (31.69, 11.772, 7.764),
-        'right_elbow': (38.092, 80.0), 'right_wrist': (-4.286, -1.021),
-        'left_clavicle': (-3.12, 4.774), 'left_shoulder': (15.729, 4.777, 10.978),
-        'left_elbow': (34.219, 17.181), 'left_wrist': (-0.115, -0.199),
+        'spine_lumbar': (46.126, 12.759, 10.108), 'spine_thoracic': (-10.383, 8.009, 17.962),
+        'neck': (34.964, 33.48, -10.221), 'right_shoulder': (31.497, 12.368, 7.572),
+        'right_elbow': (38.463, 80.0), 'right_wrist': (-4.443, -1.0),
+        'left_clavicle': (-3.111, 4.774), 'left_shoulder': (15.812, 4.717, 10.976),
+        'left_elbow': (34.197, 17.182), 'left_wrist': (-0.115, -0.206),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (51.271, 9.26, 7.956), 'neck': (35.0, 33.675, -6.28),
-        'right_clavicle': (-9.837, 14.119), 'right_shoulder': (30.694, 7.821, 8.905),
-        'right_elbow': (44.906, 80.0), 'right_wrist': (-6.095, -0.151),
-        'left_clavicle': (-5.428, 8.307), 'left_shoulder': (21.653, 4.146, 10.513),
-        'left_elbow': (34.787, 17.179), 'left_wrist': (-0.304, -0.183),
+        'spine_lumbar': (50.911, 10.471, 7.807), 'neck': (35.0, 33.75, -6.418),
+        'head': (15.0, -11.25), 'right_clavicle': (-9.738, 14.105),
+        'right_shoulder': (30.645, 8.297, 8.752), 'right_elbow': (45.255, 80.0),
+        'right_wrist': (-6.251, -0.109), 'left_clavicle': (-5.411, 8.302),
+        'left_shoulder': (21.802, 4.042, 10.513), 'left_elbow': (34.748, 17.179),
+        'left_wrist': (-0.303, -0.194),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (55.63, 6.93, 5.815), 'spine_thoracic': (-13.461, 6.741, 15.568),
-        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.82, 14.559),
-        'right_shoulder': (29.812, 4.148, 10.025), 'right_elbow': (51.053, 80.0),
-        'right_wrist': (-7.721, 0.747), 'left_clavicle': (-7.613, 11.649),
-        'left_shoulder': (27.369, 3.891, 9.861), 'left_elbow': (38.481, 17.191),
-        'left_wrist': (-0.847, 0.595),
+        'spine_lumbar': (55.435, 8.309, 5.632), 'spine_thoracic': (-13.482, 6.511, 14.975),
+        'neck': (35.0, 33.75, -2.846), 'head': (15.0, -10.981), 'right_clavicle': (-9.762, 14.551),
+        'right_shoulder': (29.893, 4.489, 9.918), 'right_elbow': (51.37, 80.0),
+        'right_wrist': (-7.876, 0.811), 'left_clavicle': (-7.585, 11.638),
+        'left_shoulder': (27.606, 3.737, 9.869), 'left_elbow': (38.405, 17.192),
+        'left_wrist': (-0.843, 0.574),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (58.673, 5.304, 4.32), 'spine_thoracic': (-14.533, 6.277, 14.516),
-        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.808, 14.866),
-        'right_shoulder': (29.212, 1.668, 10.885), 'right_elbow': (55.215, 80.0),
-        'right_wrist': (-8.887, 1.442), 'left_clavicle': (-9.137, 13.983),
-        'left_shoulder': (28.438, 4.737, 9.082), 'left_elbow': (50.378, 17.242),
-        'left_wrist': (-2.185, 3.422),
+        'spine_lumbar': (58.603, 6.794, 4.109), 'spine_thoracic': (-14.537, 6.001, 13.958),
+        'neck': (35.0, 33.005, -0.866), 'head': (15.0, -11.096), 'right_clavicle': (-9.778, 14.863),
+        'right_shoulder': (29.374, 1.886, 10.805), 'right_elbow': (55.524, 80.0),
+        'right_wrist': (-9.029, 1.517), 'left_clavicle': (-9.107, 13.974),
+        'left_shoulder': (28.804, 4.53, 9.104),
     })
-    # examples/replace_fuel_filter_cad.mtask:40:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (59.821, 4.691, 3.756), 'spine_thoracic': (-14.937, 6.102, 14.119),
-        'neck': (35.0, 32.785, -0.758), 'right_shoulder': (28.994, 0.774, 11.256),
-        'right_elbow': (56.752, 80.0), 'right_wrist': (-9.374, 1.73),
-        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.815, 5.859, 8.603),
-        'left_elbow': (62.107, 17.294), 'left_wrist': (-3.41, 6.275),
+        'spine_lumbar': (59.808, 6.218, 3.53), 'spine_thoracic': (-14.938, 5.807, 13.572),
+        'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.785, 14.982),
+        'right_shoulder': (29.183, 0.937, 11.196), 'right_elbow': (57.07, 80.0),
+        'right_wrist': (-9.516, 1.814), 'left_clavicle': (-9.686, 14.862),
+        'left_shoulder': (26.212, 5.633, 8.631), 'left_elbow': (62.054, 17.296),
+        'left_wrist': (-3.404, 6.258),
     })
-    # examples/replace_fuel_filter_cad.mtask:42:5 replace_fuel_filter_cad > release: grip on l_hand
+    # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, 32.785, -0.758),
-        'head': (15.0, -11.25), 'right_clavicle': (-9.802, 15.0),
-        'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
-        'right_wrist': (-9.449, 1.776), 'left_clavicle': (-9.802, 15.0),
-        'left_shoulder': (25.156, 6.092, 8.516), 'left_elbow': (64.45, 17.304),
-        'left_wrist': (-3.653, 6.85),
+        'spine_lumbar': (59.995, 6.129, 3.44), 'neck': (35.0, 32.998, -0.682),
+        'right_shoulder': (29.153, 0.79, 11.257), 'right_elbow': (57.31, 80.0),
+        'right_wrist': (-9.592, 1.86), 'left_clavicle': (-9.776, 15.0),
+        'left_shoulder': (25.563, 5.863, 8.546), 'left_elbow': (64.412, 17.306),
+        'left_wrist': (-3.647, 6.836),
     })
-    # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
+    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
-        'right_shoulder': (30.252, 0.886, 11.121), 'right_elbow': (54.286, 79.958),
-        'right_wrist': (-8.801, 1.617),
+        'neck': (35.0, 32.945, -1.001), 'right_shoulder': (30.46, 1.012, 11.058),
+        'right_elbow': (54.597, 79.961), 'right_wrist': (-8.849, 1.691),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
-        'right_shoulder': (32.349, 3.754, 8.711), 'right_elbow': (47.033, 76.984),
-        'right_wrist': (-11.211, 2.124),
+        'neck': (35.0, 32.041, -6.416), 'right_shoulder': (34.681, 1.939, 7.941),
+        'right_elbow': (45.282, 76.894), 'right_wrist': (-4.121, 1.583),
     })
     human.KeyJoints(8.3, {
-        'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (35.0, 25.451, -24.003),
-        'head': (10.824, -10.971), 'right_shoulder': (29.538, 10.952, 2.523),
-        'right_elbow': (44.184, 67.974), 'right_wrist': (-23.534, 4.862),
+        'neck': (35.0, 30.436, -16.029), 'head': (15.0, -11.161),
+        'right_shoulder': (37.594, 3.277, -2.505), 'right_elbow': (36.989, 64.922),
+        'right_wrist': (6.941, 2.975),
     })
     human.KeyJoints(8.4, {
-        'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
-        'right_shoulder': (22.964, 20.52, -5.758), 'right_elbow': (46.936, 55.679),
-        'right_wrist': (-42.522, 8.912),
+        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 28.675, -26.574),
+        'right_shoulder': (35.155, 4.564, -22.079), 'right_elbow': (37.549, 41.299),
+        'right_wrist': (24.281, 6.809),
     })
     human.KeyJoints(8.5, {
-        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
-        'right_shoulder': (21.357, 30.49, -13.792), 'right_elbow': (40.813, 44.146),
-        'right_wrist': (-56.169, 11.685),
+        'neck': (35.0, 27.305, -34.783), 'right_shoulder': (31.267, 5.991, -44.103),
+        'right_elbow': (40.312, 14.573), 'right_wrist': (43.112, 11.257),
     })
     human.KeyJoints(8.6, {
-        'right_shoulder': (26.361, 37.405, -17.776), 'right_elbow': (25.627, 37.021),
-        'right_wrist': (-56.401, 11.665), 'left_elbow': (64.34, 17.304),
+        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (28.326, 7.623, -61.346),
+        'right_elbow': (41.527, -6.232), 'right_wrist': (57.207, 14.564),
     })
-    # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'right_shoulder': (29.315, 39.657, -18.628), 'right_elbow': (18.481, 34.83),
-        'right_wrist': (-52.461, 11.213),
+        'right_shoulder': (26.389, 10.046, -74.07), 'right_elbow': (40.104, -21.278),
+        'right_wrist': (65.965, 16.569), 'left_elbow': (64.315, 17.306),
     })
-    # examples/replace_fuel_filter_cad.mtask:44:5 replace_fuel_filter_cad > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
-        'right_shoulder': (29.481, 39.714, -18.624), 'right_elbow': (18.233, 34.786),
-        'right_wrist': (-52.264, 11.178),
+        'right_shoulder': (25.492, 13.609, -82.351), 'right_elbow': (35.39, -30.55),
+        'right_wrist': (68.919, 17.158),
     })
-    # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
+    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.9, {
-        'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
-        'right_wrist': (-55.044, 11.187),
+        'head': (15.0, -11.25), 'right_shoulder': (25.266, 16.235, -86.104),
+        'right_elbow': (31.329, -34.484),
     })
-    human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
-    # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
-    human.KeyJoints(9.1, {
-        'spine_lumbar': (60.0, 4.605, 3.656), 'spine_thoracic': (-14.996, 6.068, 14.029),
-        'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
-        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
-        'left_elbow': (64.319, 17.328), 'left_wrist': (-3.679, 6.829),
+    # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=8.988396, duration=0.072)
+    human.KeyJoints(9.0, {
+        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (25.246, 16.687, -86.651),
+        'right_elbow': (30.605, -35.047), 'right_wrist': (68.733, 17.018),
     })
-    human.KeyJoints(9.2, {
-        'spine_lumbar': (60.0, 5.155, 2.991), 'spine_thoracic': (-14.782, 5.645, 12.458),
-        'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
-        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.777, 15.0),
-        'left_shoulder': (25.706, 6.129, 9.02), 'left_elbow': (63.166, 18.604),
-        'left_wrist': (-5.718, 7.298),
-    })
-    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
+    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
+    human.LookAt((-40.0, 10.0, 60.0), start=9.060396, duration=0.4)
+    human.KeyJoints(9.1, {'neck': (34.997, 26.821, -37.839)})
+    human.KeyJoints(9.2, {'neck': (34.959, 26.522, -41.096)})
     human.KeyJoints(9.3, {
-        'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
-        'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
-        'left_shoulder': (27.297, 6.302, 10.676), 'left_elbow': (59.267, 22.894),
-        'left_wrist': (-12.571, 8.874),
+        'spine_lumbar': (59.995, 6.129, 3.44), 'spine_thoracic': (-15.0, 5.777, 13.512),
+        'neck': (34.88, 26.089, -45.81), 'left_shoulder': (25.623, 5.851, 8.548),
+        'left_elbow': (64.315, 17.306), 'left_wrist': (-3.637, 6.81),
     })
+    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.4, {
-        'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
-        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
-        'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
-        'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
+        'spine_lumbar': (59.995, 6.238, 3.295), 'spine_thoracic': (-14.933, 5.68, 13.17),
+        'neck': (34.758, 25.744, -49.569), 'left_shoulder': (25.742, 5.861, 8.679),
+        'left_elbow': (64.036, 17.595), 'left_wrist': (-4.088, 6.913),
     })
+    # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.460396, duration=1.931992)
     human.KeyJoints(9.5, {
-        'spine_lumbar': (60.0, 13.671, -7.308), 'spine_thoracic': (-10.514, -1.074, -11.877),
-        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893),
-        'left_clavicle': (-9.292, 14.975), 'left_shoulder': (33.625, 7.497, 16.542),
-        'left_elbow': (43.611, 38.329), 'left_wrist': (-36.733, 14.357),
+        'spine_lumbar': (59.995, 7.202, 2.014), 'spine_thoracic': (-14.338, 4.828, 10.146),
+        'neck': (34.409, 26.221, -48.857), 'left_clavicle': (-9.719, 15.0),
+        'left_shoulder': (26.797, 5.949, 9.83), 'left_elbow': (61.569, 20.146),
+        'left_wrist': (-8.07, 7.829),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
-        'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
-        'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
-        'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
+        'spine_lumbar': (59.996, 9.372, -0.869), 'spine_thoracic': (-12.962, 2.906, 3.342),
+        'neck': (32.811, 30.451, -35.644), 'head': (15.0, -11.201),
+        'left_shoulder': (29.185, 6.173, 12.418), 'left_elbow': (55.949, 25.886),
+        'left_wrist': (-17.02, 9.885),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
-        'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
-        'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
-        'left_wrist': (-47.473, 15.797),
+        'spine_lumbar': (59.997, 12.414, -4.905), 'spine_thoracic': (-10.768, 0.179, -6.192),
+        'neck': (31.62, 33.719, -18.709), 'head': (15.0, -11.068),
+        'left_clavicle': (-9.385, 14.988), 'left_shoulder': (32.688, 6.652, 16.018),
+        'left_elbow': (47.617, 33.918), 'left_wrist': (-29.406, 12.71),
     })
-    # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
-        'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
-        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.821, 12.987, 20.099),
-        'left_elbow': (12.753, 51.643), 'left_wrist': (-46.123, 15.05),
+        'spine_lumbar': (59.998, 15.657, -9.193), 'spine_thoracic': (-7.273, -2.968, -16.343),
+        'neck': (34.966, 33.736, -6.16), 'head': (14.999, -10.506),
+        'left_clavicle': (-9.157, 14.962), 'left_shoulder': (37.519, 7.711, 19.681),
+        'left_elbow': (36.993, 42.379), 'left_wrist': (-41.469, 15.339),
     })
-    # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
     human.KeyJoints(9.9, {
-        'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.566, -8.564, 10.152),
-        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
-        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
+        'spine_lumbar': (59.999, 18.291, -12.684), 'spine_thoracic': (-1.174, -6.422, -24.595),
+        'neck': (34.887, 29.549, 1.468), 'head': (14.931, -5.993),
+        'left_clavicle': (-9.297, 14.951), 'left_shoulder': (45.408, 9.638, 22.12),
+        'left_elbow': (23.95, 48.919), 'left_wrist': (-47.172, 16.14),
+    })
+    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
+    human.KeyJoints(10.0, {
+        'spine_lumbar': (60.0, 19.675, -14.555), 'spine_thoracic': (5.306, -9.231, -28.968),
+        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.824, 14.986),
+        'left_shoulder': (53.882, 11.484, 22.864), 'left_elbow': (12.861, 52.015),
+        'left_wrist': (-45.725, 15.132),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.566, -8.564, 10.152),
-        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
-        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
+        'spine_lumbar': (60.0, 19.999, -14.998), 'spine_thoracic': (7.174, -9.997, -29.996),
+        'neck': (31.492, -8.768, 9.26), 'head': (12.667, 10.389), 'left_clavicle': (-9.999, 15.0),
+        'left_shoulder': (56.34, 11.998, 22.981), 'left_elbow': (9.817, 52.704),
+        'left_wrist': (-44.9, 14.74),
     })
-    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
     human.KeyJoints(10.2, {
-        'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
-        'left_shoulder': (52.255, 13.363, 19.269), 'left_elbow': (14.124, 51.573),
-        'left_wrist': (-46.194, 14.983),
+        'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268), 'right_elbow': (30.675, -35.047),
+        'left_elbow': (9.649, 52.706), 'left_wrist': (-44.703, 14.684),
     })
     human.KeyJoints(10.3, {
-        'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
-        'left_shoulder': (44.901, 15.561, 13.318), 'left_elbow': (28.254, 50.351),
-        'left_wrist': (-48.75, 15.28),
+        'neck': (30.638, -8.565, 9.124), 'left_shoulder': (56.424, 11.963, 22.984),
     })
+    # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
-        'left_shoulder': (32.623, 19.142, 3.357), 'left_elbow': (50.374, 48.262),
-        'left_wrist': (-52.717, 15.702),
+        'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
+        'left_shoulder': (56.393, 11.974, 22.963), 'left_elbow': (9.713, 52.702),
+        'left_wrist': (-44.728, 14.69),
     })
     human.KeyJoints(10.5, {
-        'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
-        'left_shoulder': (16.23, 23.477, -9.859), 'left_elbow': (73.078, 45.265),
-        'left_wrist': (-56.891, 15.917),
+        'neck': (31.5, -7.979, 20.439), 'head': (12.634, 10.463),
+        'left_shoulder': (52.88, 13.043, 19.974), 'left_elbow': (17.132, 52.073),
+        'left_wrist': (-46.074, 14.883),
     })
     human.KeyJoints(10.6, {
-        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-5.395, 27.919, -26.805),
-        'left_elbow': (86.066, 40.686), 'left_wrist': (-59.878, 14.848),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.112, 15.989, 11.614),
+        'left_elbow': (37.254, 50.3), 'left_wrist': (-49.624, 15.366),
     })
     human.KeyJoints(10.7, {
-        'head': (14.88, 11.25), 'left_shoulder': (-26.1, 31.869, -44.096),
-        'left_elbow': (85.741, 35.592), 'left_wrist': (-61.195, 11.873),
+        'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
+        'left_shoulder': (29.682, 19.911, 0.066), 'left_elbow': (61.512, 47.757),
+        'left_wrist': (-53.94, 15.863),
     })
     human.KeyJoints(10.8, {
-        'left_shoulder': (-38.072, 36.412, -60.79), 'left_elbow': (87.06, 32.389),
-        'left_wrist': (-63.588, 9.483),
+        'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
+        'left_shoulder': (11.766, 24.593, -15.344), 'left_elbow': (82.108, 43.956),
+        'left_wrist': (-57.97, 15.776),
     })
-    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-40.838, 38.551, -71.465), 'left_elbow': (92.598, 31.625),
-        'left_wrist': (-66.603, 9.03),
+        'left_shoulder': (-9.632, 29.348, -33.954), 'left_elbow': (88.899, 38.561),
+        'left_wrist': (-60.255, 13.679),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-41.408, 39.143, -75.483), 'left_elbow': (95.239, 31.469),
-        'left_wrist': (-67.926, 8.984),
+        'left_shoulder': (-26.977, 34.859, -52.445), 'left_elbow': (88.38, 33.572),
+        'left_wrist': (-61.758, 10.358),
     })
-    # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'left_shoulder': (-41.453, 39.119, -75.823), 'left_elbow': (95.476, 31.457),
-        'left_wrist': (-68.055, 8.983),
+        'left_shoulder': (-33.233, 40.139, -66.786), 'left_elbow': (92.787, 31.55),
+        'left_wrist': (-64.364, 8.925),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
-    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
-    human.KeyJoints(11.4, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),
-        'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
+    # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
+    human.KeyJoints(11.2, {
+        'left_shoulder': (-34.071, 42.474, -73.868), 'left_elbow': (97.222, 31.171),
+        'left_wrist': (-66.308, 8.759),
     })
-    human.KeyJoints(11.5, {
-        'spine_lumbar': (60.0, 18.983, -14.454), 'spine_thoracic': (3.731, -9.488, -29.467),
-        'right_shoulder': (29.66, 38.407, -18.234), 'right_elbow': (18.704, 34.954),
-        'right_wrist': (-52.361, 11.239),
+    human.KeyJoints(11.3, {
+        'left_shoulder': (-34.185, 43.013, -75.58), 'left_elbow': (98.39, 31.103),
+        'left_wrist': (-66.808, 8.741),
     })
+    # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=11.320387, duration=0.072)
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.582976)
+    human.KeyJoints(11.5, {'neck': (35.0, -5.557, 66.353)})
     human.KeyJoints(11.6, {
-        'spine_lumbar': (59.997, 13.83, -11.689), 'spine_thoracic': (1.88, -6.911, -26.763),
-        'right_clavicle': (-9.832, 15.0), 'right_shoulder': (31.1, 31.83, -16.148),
-        'right_elbow': (20.594, 35.807), 'right_wrist': (-52.114, 11.425),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (7.181, -10.0, -30.0),
+        'right_shoulder': (25.239, 16.65, -86.65), 'right_wrist': (68.791, 17.033),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.7, {
-        'spine_lumbar': (59.957, 4.801, -6.843), 'spine_thoracic': (-1.463, -2.395, -22.016),
-        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.672, 20.18, -12.438),
-        'right_elbow': (23.982, 37.322), 'right_wrist': (-51.688, 11.772),
+        'spine_lumbar': (60.0, 19.873, -14.927), 'spine_thoracic': (7.118, -9.937, -29.931),
+        'right_shoulder': (25.314, 16.53, -86.576), 'right_elbow': (30.677, -35.022),
+        'right_wrist': (68.768, 17.014),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
     human.KeyJoints(11.8, {
-        'spine_lumbar': (59.493, -5.403, -1.349), 'spine_thoracic': (-5.618, 2.74, -16.608),
-        'neck': (34.474, -10.956, 59.829), 'right_clavicle': (-9.854, 14.931),
-        'right_shoulder': (36.642, 6.302, -7.959), 'right_elbow': (28.171, 39.139),
-        'right_wrist': (-51.275, 12.281),
+        'spine_lumbar': (59.991, 16.716, -13.119), 'spine_thoracic': (5.561, -8.373, -28.213),
+        'right_clavicle': (-9.796, 14.961), 'right_shoulder': (27.189, 13.562, -84.754),
+        'right_elbow': (30.715, -34.405), 'right_wrist': (68.194, 16.537),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (57.59, -13.557, 3.099), 'spine_thoracic': (-9.555, 6.955, -12.196),
-        'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
-        'right_shoulder': (38.72, -6.64, -3.669), 'right_elbow': (32.291, 40.84),
-        'right_wrist': (-51.199, 12.982),
+        'spine_lumbar': (59.95, 8.501, -8.412), 'spine_thoracic': (1.471, -4.3, -23.74),
+        'neck': (35.0, -5.159, 66.266), 'right_shoulder': (32.104, 5.779, -79.985),
+        'right_elbow': (30.818, -32.794), 'right_wrist': (66.701, 15.293),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=11.975363, duration=0.347476)
     human.KeyJoints(12.0, {
-        'spine_lumbar': (55.373, -17.948, 5.539), 'spine_thoracic': (-12.008, 9.312, -9.764),
-        'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
-        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.507, -14.907, -0.872),
-        'right_elbow': (35.004, 41.925), 'right_wrist': (-51.356, 13.561),
+        'spine_lumbar': (59.638, -2.277, -2.235), 'spine_thoracic': (-4.126, 1.057, -17.86),
+        'neck': (34.967, -5.393, 65.39), 'right_clavicle': (-9.835, 14.708),
+        'right_shoulder': (38.729, -4.898, -73.561), 'right_elbow': (30.984, -30.647),
+        'right_wrist': (64.788, 13.643),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (54.72, -19.053, 6.157), 'spine_thoracic': (-12.648, 9.911, -9.147),
-        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.676, -17.087, -0.131),
-        'right_elbow': (35.724, 42.211), 'right_wrist': (-51.411, 13.722),
-        'left_shoulder': (-41.45, 39.188, -75.798),
+        'spine_lumbar': (57.889, -11.617, 3.132), 'spine_thoracic': (-9.477, 5.786, -12.738),
+        'neck': (34.319, -10.356, 49.151), 'right_clavicle': (-9.708, 14.418),
+        'right_shoulder': (44.563, -15.844, -67.516), 'right_elbow': (31.201, -28.678),
+        'right_wrist': (63.399, 12.168),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.2, {
-        'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
-        'right_clavicle': (-9.216, 14.273), 'right_shoulder': (39.601, -17.113, -0.126),
-        'right_elbow': (35.832, 42.271), 'right_wrist': (-51.485, 13.749),
+        'spine_lumbar': (55.121, -16.806, 6.128), 'spine_thoracic': (-12.809, 8.52, -9.874),
+        'neck': (33.347, -17.814, 24.779), 'right_clavicle': (-9.456, 14.058),
+        'right_shoulder': (47.638, -23.697, -63.725), 'right_elbow': (31.382, -27.48),
+        'right_wrist': (62.961, 11.313),
     })
     human.KeyJoints(12.3, {
-        'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),
+        'spine_lumbar': (54.169, -18.185, 6.926), 'spine_thoracic': (-13.73, 9.259, -9.112),
+        'neck': (32.712, -22.686, 8.865), 'right_clavicle': (-9.366, 13.938),
+        'right_shoulder': (48.427, -25.989, -62.67), 'right_elbow': (31.437, -27.15),
+        'right_wrist': (62.884, 11.082),
     })
-    human.KeyJoints(12.4, {'right_elbow': (34.977, 62.608), 'right_wrist': (-51.115, 13.353)})
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=12.322839, duration=0.072)
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(12.4, {
+        'neck': (32.683, -22.906, 8.146), 'right_shoulder': (48.412, -26.052, -62.657),
+        'right_elbow': (31.473, -27.102), 'right_wrist': (62.923, 11.088),
+    })
     human.KeyJoints(12.5, {
-        'right_shoulder': (39.201, -14.009, -1.513), 'right_elbow': (34.902, 75.254),
-        'right_wrist': (-51.041, 13.177),
+        'right_shoulder': (47.831, -25.093, -63.018), 'right_elbow': (33.326, -11.552),
+        'right_wrist': (63.916, 11.648),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.6, {
-        'right_shoulder': (39.193, -13.562, -1.709), 'right_elbow': (34.962, 79.758),
-        'right_wrist': (-51.045, 13.124),
+        'right_shoulder': (47.793, -23.5, -63.312), 'right_elbow': (38.015, 20.107),
+        'right_wrist': (67.182, 13.316),
     })
     human.KeyJoints(12.7, {
-        'right_shoulder': (39.285, -15.256, -0.955), 'right_elbow': (34.978, 62.557),
-        'right_wrist': (-51.115, 13.354),
+        'right_shoulder': (49.443, -22.511, -63.109), 'right_elbow': (42.37, 50.621),
+        'right_wrist': (72.089, 14.964),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.8, {
-        'right_shoulder': (39.846, -18.058, 0.276), 'right_elbow': (36.775, 30.427),
-        'right_wrist': (-51.876, 14.076),
+        'right_shoulder': (50.565, -22.34, -62.914), 'right_elbow': (43.775, 62.742),
+        'right_wrist': (74.379, 15.317),
     })
     human.KeyJoints(12.9, {
-        'right_shoulder': (40.685, -19.749, 0.914), 'right_elbow': (40.194, 0.621),
-        'right_wrist': (-53.313, 15.241),
+        'right_shoulder': (49.12, -22.601, -63.161), 'right_elbow': (41.83, 46.472),
+        'right_wrist': (71.324, 14.783),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.0, {
-        'right_shoulder': (40.975, -20.05, 0.995), 'right_elbow': (41.703, -9.627),
-        'right_wrist': (-54.025, 15.778),
+        'right_shoulder': (47.682, -23.733, -63.302), 'right_elbow': (37.151, 14.6),
+        'right_wrist': (66.471, 12.985),
     })
     human.KeyJoints(13.1, {
-        'right_shoulder': (40.466, -19.425, 0.807), 'right_elbow': (39.165, 8.259),
-        'right_wrist': (-52.857, 14.884),
+        'right_shoulder': (47.935, -25.364, -62.934), 'right_elbow': (32.842, -15.619),
+        'right_wrist': (63.661, 11.495),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.2, {
-        'right_shoulder': (39.637, -17.256, -0.064), 'right_elbow': (35.944, 40.567),
-        'right_wrist': (-51.53, 13.79),
+        'right_shoulder': (48.404, -26.041, -62.662), 'right_elbow': (31.489, -26.942),
+        'right_wrist': (62.932, 11.093),
     })
     human.KeyJoints(13.3, {
-        'right_shoulder': (39.224, -14.524, -1.283), 'right_elbow': (34.89, 70.044),
-        'right_wrist': (-51.056, 13.244),
+        'right_shoulder': (47.791, -25.001, -63.046), 'right_elbow': (33.536, -9.967),
+        'right_wrist': (64.037, 11.715),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.4, {
-        'right_shoulder': (39.193, -13.591, -1.697), 'right_elbow': (34.957, 79.469),
-        'right_wrist': (-51.045, 13.128),
+        'right_shoulder': (47.846, -23.42, -63.312), 'right_elbow': (38.329, 22.102),
+        'right_wrist': (67.456, 13.438),
     })
     human.KeyJoints(13.5, {
-        'right_shoulder': (39.303, -15.414, -0.883), 'right_elbow': (35.014, 60.912),
-        'right_wrist': (-51.134, 13.38),
+        'right_shoulder': (49.559, -22.484, -63.09), 'right_elbow': (42.545, 52.012),
+        'right_wrist': (72.349, 15.019),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.6, {
-        'right_shoulder': (39.885, -18.204, 0.335), 'right_elbow': (36.972, 28.441),
-        'right_wrist': (-51.959, 14.141),
+        'right_shoulder': (50.543, -22.341, -62.918), 'right_elbow': (43.753, 62.526),
+        'right_wrist': (74.338, 15.313),
     })
     human.KeyJoints(13.7, {
-        'right_shoulder': (40.722, -19.796, 0.928), 'right_elbow': (40.379, -0.691),
-        'right_wrist': (-53.398, 15.307),
+        'right_shoulder': (49.003, -22.641, -63.18), 'right_elbow': (41.613, 44.86),
+        'right_wrist': (71.032, 14.707),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.8, {
-        'right_shoulder': (40.965, -20.042, 0.993), 'right_elbow': (41.65, -9.283),
-        'right_wrist': (-53.999, 15.759),
+        'right_shoulder': (47.655, -23.823, -63.294), 'right_elbow': (36.84, 12.608),
+        'right_wrist': (66.23, 12.868),
     })
     human.KeyJoints(13.9, {
-        'right_shoulder': (40.419, -19.344, 0.779), 'right_elbow': (38.952, 9.929),
-        'right_wrist': (-52.766, 14.812),
+        'right_shoulder': (47.984, -25.439, -62.905), 'right_elbow': (32.662, -16.977),
+        'right_wrist': (63.558, 11.44),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.0, {
-        'right_shoulder': (39.595, -17.089, -0.136), 'right_elbow': (35.815, 42.548),
-        'right_wrist': (-51.478, 13.742),
+        'right_shoulder': (48.391, -26.024, -62.669), 'right_elbow': (31.518, -26.671),
+        'right_wrist': (62.946, 11.101),
     })
     human.KeyJoints(14.1, {
-        'right_shoulder': (39.217, -14.399, -1.34), 'right_elbow': (34.888, 71.321),
-        'right_wrist': (-51.051, 13.227),
+        'right_shoulder': (47.755, -24.906, -63.075), 'right_elbow': (33.757, -8.33),
+        'right_wrist': (64.166, 11.786),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.2, {
-        'right_shoulder': (39.194, -13.631, -1.68), 'right_elbow': (34.95, 79.071),
-        'right_wrist': (-51.044, 13.132),
+        'right_shoulder': (47.906, -23.343, -63.31), 'right_elbow': (38.641, 24.09),
+        'right_wrist': (67.738, 13.56),
     })
     human.KeyJoints(14.3, {
-        'right_shoulder': (39.323, -15.576, -0.81), 'right_elbow': (35.057, 59.218),
-        'right_wrist': (-51.155, 13.408),
+        'right_shoulder': (49.672, -22.46, -63.071), 'right_elbow': (42.709, 53.335),
+        'right_wrist': (72.598, 15.068),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.4, {
-        'right_shoulder': (39.967, -18.345, 0.396), 'right_elbow': (37.106, 26.466),
-        'right_wrist': (-51.999, 14.19),
+        'right_shoulder': (50.51, -22.344, -62.924), 'right_elbow': (43.719, 62.199),
+        'right_wrist': (74.276, 15.308),
     })
     human.KeyJoints(14.5, {
-        'right_shoulder': (40.758, -19.839, 0.94), 'right_elbow': (40.557, -1.932),
-        'right_wrist': (-53.48, 15.369),
+        'right_shoulder': (48.888, -22.683, -63.197), 'right_elbow': (41.385, 43.198),
+        'right_wrist': (70.735, 14.624),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.6, {
-        'right_shoulder': (40.953, -20.032, 0.991), 'right_elbow': (41.581, -8.833),
-        'right_wrist': (-53.966, 15.734),
+        'right_shoulder': (47.634, -23.914, -63.284), 'right_elbow': (36.533, 10.626),
+        'right_wrist': (65.999, 12.754),
     })
     human.KeyJoints(14.7, {
-        'right_shoulder': (40.37, -19.256, 0.747), 'right_elbow': (38.738, 11.646),
+        'right_shoulder': (48.033, -25.512, -62.877), 'right_elbow': (32.495, -18.265),
+        'right_wrist': (63.464, 11.389),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.8, {
-        'right_shoulder': (39.554, -16.921, -0.211), 'right_elbow': (35.698, 44.516),
-        'right_wrist': (-51.432, 13.698),
+        'right_shoulder': (48.373, -25.999, -62.679), 'right_elbow': (31.558, -26.291),
+        'right_wrist': (62.966, 11.113),
     })
     human.KeyJoints(14.9, {
-        'right_shoulder': (39.211, -14.279, -1.393), 'right_elbow': (34.889, 72.525),
-        'right_wrist': (-51.046, 13.211),
+        'right_shoulder': (47.721, -24.81, -63.102), 'right_elbow': (33.988, -6.644),
+        'right_wrist': (64.303, 11.862),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(15.0, {
-        'right_shoulder': (39.194, -13.68, -1.658), 'right_elbow': (34.942, 78.57),
-        'right_wrist': (-51.043, 13.138),
+        'right_shoulder': (47.996, -23.238, -63.308), 'right_elbow': (38.874, 26.066),
+        'right_wrist': (67.962, 13.652),
     })
     human.KeyJoints(15.1, {
-        'right_shoulder': (39.344, -15.741, -0.736), 'right_elbow': (35.108, 57.48),
-        'right_wrist': (-51.179, 13.438),
+        'right_shoulder': (49.782, -22.438, -63.052), 'right_elbow': (42.861, 54.588),
+        'right_wrist': (72.834, 15.112),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(15.2, {
-        'right_shoulder': (40.017, -18.481, 0.45), 'right_elbow': (37.299, 24.506),
-        'right_wrist': (-52.077, 14.254),
+        'right_shoulder': (50.466, -22.348, -62.932), 'right_elbow': (43.673, 61.766),
+        'right_wrist': (74.195, 15.3),
     })
     human.KeyJoints(15.3, {
-        'right_shoulder': (40.791, -19.876, 0.951), 'right_elbow': (40.726, -3.098),
-        'right_wrist': (-53.558, 15.429),
+        'right_shoulder': (48.774, -22.729, -63.214), 'right_elbow': (41.148, 41.489),
+        'right_wrist': (70.435, 14.536),
     })
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
     human.KeyJoints(15.4, {
-        'right_shoulder': (40.985, -20.058, 0.997), 'right_elbow': (41.76, -10.0),
-        'right_wrist': (-54.053, 15.799),
+        'right_shoulder': (47.62, -24.007, -63.272), 'right_elbow': (36.23, 8.656),
+        'right_wrist': (65.776, 12.643),
     })
-    # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
     human.KeyJoints(15.5, {
-        'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
-        'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
-        'right_wrist': (-53.413, 15.296),
+        'right_shoulder': (48.08, -25.582, -62.85), 'right_elbow': (32.341, -19.481),
+        'right_wrist': (63.379, 11.343),
     })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=15.571309, duration=0.072)
     human.KeyJoints(15.6, {
-        'right_shoulder': (40.145, -18.157, 0.275), 'right_elbow': (37.885, -10.0),
-        'right_wrist': (-52.356, 14.465),
+        'right_shoulder': (48.414, -26.055, -62.656), 'right_elbow': (31.468, -27.147),
+        'right_wrist': (62.921, 11.087),
     })
-    human.KeyJoints(15.7, {
-        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
-        'right_wrist': (-51.411, 13.723),
-    })
-    # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(15.8, {'neck': (30.989, -25.025, 10.522)})
-    human.KeyJoints(15.9, {'head': (15.0, 11.25)})
-    human.KeyJoints(18.7, {
-        'spine_lumbar': (54.717, -19.058, 6.16), 'spine_thoracic': (-12.652, 9.915, -9.144),
-        'neck': (30.989, -25.03, 10.525), 'head': (15.0, 11.25), 'right_clavicle': (-9.216, 14.273),
-        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
-        'right_wrist': (-51.411, 13.723), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (-41.45, 39.188, -75.798), 'left_elbow': (95.45, 31.457),
-        'left_wrist': (-68.031, 8.981),
-    })
-    # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > stand: posture on root
-    # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > stand: gaze on head
-    human.KeyJoints(18.8, {
-        'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
-        'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
-        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
-        'right_elbow': (35.037, -4.545), 'right_wrist': (-40.73, 10.834),
-        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
-        'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
-    })
+    # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=15.643309, duration=0.393628)
+    # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > hold: hold on root
     human.KeyJoints(18.9, {
-        'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
-        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
-        'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
-        'right_wrist': (-19.323, 5.147), 'left_clavicle': (-3.808, 5.667),
-        'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
-        'left_wrist': (-25.711, 3.4),
+        'spine_lumbar': (54.161, -18.196, 6.933), 'spine_thoracic': (-13.738, 9.266, -9.106),
+        'neck': (32.683, -22.906, 8.146), 'head': (15.0, 11.25), 'right_clavicle': (-9.366, 13.937),
+        'right_shoulder': (48.433, -26.008, -62.661), 'right_elbow': (31.437, -27.147),
+        'right_wrist': (62.883, 11.08), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (-34.186, 43.016, -75.59), 'left_elbow': (98.397, 31.103),
+        'left_wrist': (-66.811, 8.741),
     })
-    human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
+    # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: posture on root
+    # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: gaze on head
     human.KeyJoints(19.0, {
-        'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
-        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
-        'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
-        'right_wrist': (-2.049, 0.569), 'left_clavicle': (-0.428, 0.603),
-        'left_shoulder': (6.609, 8.924, -22.29), 'left_elbow': (36.66, 17.797),
-        'left_wrist': (-2.734, 0.34), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'spine_lumbar': (43.963, -14.883, 5.613), 'spine_thoracic': (-10.243, 7.112, -7.372),
+        'neck': (25.29, -17.725, 6.346), 'head': (11.607, 8.705),
+        'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.907, -19.399, -54.317),
+        'right_elbow': (31.503, -18.43), 'right_wrist': (50.292, 8.825),
+        'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.823, 36.257, -64.814),
+        'left_elbow': (86.011, 28.399), 'left_wrist': (-53.798, 7.087),
+    })
+    human.KeyJoints(19.1, {
+        'spine_lumbar': (23.407, -7.332, 2.671), 'spine_thoracic': (-3.002, 2.66, -3.508),
+        'neck': (10.073, -7.06, 2.548), 'head': (4.623, 3.467), 'right_clavicle': (-3.608, 5.315),
+        'right_shoulder': (24.103, -5.291, -36.22), 'right_elbow': (32.851, 0.319),
+        'right_wrist': (23.849, 4.151), 'left_clavicle': (-3.852, 5.72),
+        'left_shoulder': (-7.744, 21.243, -41.321), 'left_elbow': (58.763, 22.485),
+        'left_wrist': (-25.492, 3.346),
+    })
+    human.KeyRoot(19.2, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.2, {
+        'spine_lumbar': (11.207, -0.247, 0.281), 'spine_thoracic': (1.883, 0.015, -0.369),
+        'neck': (0.099, -0.07, 0.056), 'head': (0.046, 0.034), 'right_clavicle': (-0.38, 0.519),
+        'right_shoulder': (10.298, 6.189, -21.544), 'right_elbow': (34.088, 15.539),
+        'right_wrist': (2.364, 0.414), 'left_clavicle': (-0.405, 0.559),
+        'left_shoulder': (7.055, 9.024, -22.131), 'left_elbow': (36.569, 17.705),
+        'left_wrist': (-2.49, 0.303), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
-    human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.1, {
-        'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
-        'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
-        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.761, 7.55, -19.913),
-        'left_elbow': (34.061, 17.189), 'left_wrist': (0.143, -0.046),
-        'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
-        'left_knee': (132.894,),
-    })
-    human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.2, {
-        'spine_lumbar': (-6.898, 20.0, 0.0), 'spine_thoracic': (-3.456, 10.0, 0.0),
-        'right_hip': (30.866, -0.002, -0.001), 'right_knee': (132.895,),
-        'right_ankle': (15.162, 0.004), 'left_hip': (30.866, 0.002, 0.001), 'left_knee': (132.895,),
-        'left_ankle': (15.162, -0.004), 'right_toes': (86.736,), 'left_toes': (86.736,),
-    })
-    human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.3, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
-        'right_shoulder': (8.622, 7.533, -20.017), 'right_elbow': (34.289, 17.22),
-        'right_wrist': (0.068, -0.019), 'left_shoulder': (8.696, 7.521, -19.948),
-        'left_elbow': (34.204, 17.189), 'left_wrist': (0.081, -0.024),
-        'right_hip': (28.486, -0.424, -0.166), 'right_knee': (130.517,),
-        'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
-        'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
+        'spine_lumbar': (11.511, 9.921, 0.0), 'spine_thoracic': (1.861, 1.989, 0.0),
+        'neck': (-0.103, 0.072, 0.0), 'head': (-0.047, -0.035), 'right_clavicle': (0.0, -0.037),
+        'right_shoulder': (8.637, 7.544, -19.854), 'right_elbow': (34.275, 17.307),
+        'right_wrist': (-0.148, -0.019), 'left_clavicle': (0.0, -0.04),
+        'left_shoulder': (8.798, 7.563, -19.89), 'left_elbow': (33.995, 17.152),
+        'left_wrist': (0.177, -0.052), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
+        'left_hip': (30.631, 0.0, 0.0), 'left_knee': (132.66,),
     })
-    human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.4, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.4, {
-        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.93, 10.0, 0.0),
-        'right_shoulder': (8.393, 7.123, -19.905), 'right_elbow': (35.707, 17.208),
-        'right_wrist': (-0.015, 0.314), 'left_shoulder': (7.579, 7.447, -20.084),
-        'left_elbow': (36.514, 17.189), 'left_wrist': (-0.154, 0.485),
-        'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
-        'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
-        'right_toes': (86.604,), 'left_toes': (90.0,),
+        'spine_lumbar': (-6.191, 20.0, 0.0), 'spine_thoracic': (-3.156, 9.794, 0.0),
+        'left_elbow': (34.137, 17.16), 'right_hip': (30.975, -0.002, -0.001),
+        'right_knee': (133.004,), 'right_ankle': (15.162, 0.004),
+        'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,), 'left_ankle': (15.162, -0.004),
+        'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.5, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.126, 10.0, 0.0),
-        'right_shoulder': (8.11, 6.348, -19.676), 'right_elbow': (38.237, 17.195),
-        'right_wrist': (-0.133, 0.917), 'left_shoulder': (5.567, 7.363, -20.335),
-        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.566, 1.413),
-        'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
-        'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
-        'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
+        'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.973, 10.0, 0.0),
+        'right_shoulder': (8.646, 7.543, -19.922), 'right_elbow': (34.243, 17.255),
+        'right_wrist': (-0.078, -0.028), 'left_shoulder': (8.722, 7.526, -19.935),
+        'left_elbow': (34.164, 17.168), 'left_wrist': (0.1, -0.029),
+        'right_hip': (29.119, -0.468, -0.191), 'right_knee': (131.151,),
+        'right_ankle': (15.087, 0.295), 'left_hip': (28.49, -2.112, 2.219), 'left_knee': (132.068,),
+        'left_ankle': (17.195, 2.945), 'left_toes': (85.798,),
     })
-    human.KeyRoot(19.6, (2.141, 43.633, 41.688), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.6, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-26.244, 20.0, 0.0), 'spine_thoracic': (-11.533, 10.0, 0.0),
-        'right_shoulder': (8.1, 6.147, -19.608), 'right_elbow': (38.881, 17.189),
-        'right_wrist': (-0.165, 1.072), 'left_shoulder': (5.037, 7.365, -20.414),
-        'left_elbow': (41.666, 17.188), 'left_wrist': (-0.677, 1.635),
-        'right_hip': (26.282, -0.378, -0.134), 'right_knee': (128.291,),
-        'left_hip': (58.604, -20.287, 29.244), 'left_knee': (135.0,),
-        'left_ankle': (-48.907, 8.399), 'left_toes': (70.117,),
+        'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
+        'right_shoulder': (8.425, 7.046, -19.816), 'right_elbow': (35.92, 17.228),
+        'right_wrist': (-0.108, 0.367), 'left_shoulder': (7.378, 7.439, -20.102),
+        'left_elbow': (36.975, 17.176), 'left_wrist': (-0.186, 0.593),
+        'right_hip': (27.494, -0.514, -0.19), 'right_knee': (129.498,),
+        'right_ankle': (15.135, 0.289), 'left_hip': (32.614, -4.47, 3.326), 'left_knee': (134.97,),
+        'left_ankle': (-0.061, 5.498), 'right_toes': (86.572,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.7, (2.518, 42.736, 40.04), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.7, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.7, {
-        'spine_lumbar': (-23.02, 20.0, 0.0), 'spine_thoracic': (-14.903, 10.0, 0.0),
-        'right_elbow': (36.576, 17.189), 'right_hip': (28.817, -0.287, -0.114),
-        'right_knee': (130.835,), 'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
-        'left_ankle': (-45.238, 14.118), 'left_toes': (55.282,),
+        'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 10.0, 0.0),
+        'right_shoulder': (8.057, 6.09, -19.572), 'right_elbow': (39.1, 17.202),
+        'right_wrist': (-0.192, 1.128), 'left_shoulder': (4.972, 7.356, -20.417),
+        'left_elbow': (42.001, 17.184), 'left_wrist': (-0.692, 1.725),
+        'right_hip': (29.291, -0.258, -0.105), 'right_knee': (131.288,),
+        'right_ankle': (15.11, 0.184), 'left_hip': (41.403, -17.888, 7.84),
+        'left_ankle': (-30.511, 18.414), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.8, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.8, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-16.365, 20.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
-        'left_hip': (107.043, -23.666, 20.819), 'left_knee': (133.257,),
-        'left_ankle': (-40.684, 19.283), 'left_toes': (43.214,),
+        'spine_lumbar': (-25.476, 20.0, 0.0), 'spine_thoracic': (-10.903, 10.0, 0.0),
+        'right_shoulder': (8.096, 5.866, -19.508), 'right_elbow': (39.802, 17.188),
+        'right_wrist': (-0.194, 1.298), 'left_shoulder': (4.397, 7.367, -20.51),
+        'left_elbow': (43.071, 17.188), 'left_wrist': (-0.815, 1.961),
+        'right_hip': (26.503, -0.386, -0.138), 'right_knee': (128.512,),
+        'left_hip': (57.423, -20.119, 29.089), 'left_knee': (135.0,),
+        'left_ankle': (-48.832, 8.202), 'left_toes': (70.209,),
     })
-    human.KeyRoot(19.9, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.9, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.9, {
-        'spine_lumbar': (-15.41, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (32.466, -0.198, -0.092), 'right_knee': (134.476,),
-        'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
-        'left_ankle': (-30.516, 21.77), 'left_toes': (34.363,),
+        'spine_lumbar': (-23.91, 20.0, 0.0), 'spine_thoracic': (-14.842, 10.0, 0.0),
+        'right_shoulder': (8.276, 6.702, -19.771), 'left_elbow': (38.809, 17.189),
+        'right_hip': (28.271, -0.289, -0.112), 'right_knee': (130.289,),
+        'left_hip': (86.119, -23.232, 26.697), 'left_knee': (134.934,),
+        'left_ankle': (-45.269, 13.893), 'left_toes': (55.701,),
     })
-    human.KeyRoot(20.0, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.0, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.0, {
-        'spine_lumbar': (-25.197, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (28.888, -0.217, -0.087), 'right_knee': (130.908,),
-        'right_ankle': (15.05, 0.155), 'left_hip': (106.01, -25.0, 14.333), 'left_knee': (132.939,),
-        'left_ankle': (-18.119, 29.406), 'right_toes': (86.834,), 'left_toes': (40.267,),
+        'spine_lumbar': (-16.434, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+        'right_hip': (32.569, -0.261, -0.12), 'right_knee': (134.594,),
+        'right_ankle': (15.053, 0.198), 'left_hip': (106.363, -23.561, 21.269),
+        'left_knee': (133.197,), 'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
     })
-    human.KeyRoot(20.1, (2.269, 43.004, 40.525), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.1, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.1, {
-        'spine_lumbar': (-29.5, 20.0, 0.0), 'spine_thoracic': (-8.639, 10.0, 0.0),
-        'right_hip': (28.034, -0.485, -0.185), 'right_knee': (130.084,),
-        'right_ankle': (15.055, 0.314), 'left_hip': (99.615, -12.599, 8.426),
-        'left_knee': (127.337,), 'left_ankle': (-16.144, 16.163), 'right_toes': (86.696,),
-        'left_toes': (42.178,),
+        'spine_lumbar': (-15.119, 20.0, 0.0), 'right_hip': (32.639, -0.2, -0.093),
+        'right_knee': (134.651,), 'left_hip': (119.967, -25.0, 10.628), 'left_knee': (134.997,),
+        'left_ankle': (-30.514, 21.747), 'left_toes': (33.665,),
     })
-    human.KeyRoot(20.2, (3.103, 41.488, 38.006), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.2, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.2, {
-        'spine_lumbar': (-5.713, 7.385, 0.0), 'spine_thoracic': (-3.594, 3.031, 0.0),
-        'right_hip': (32.073, -0.033, -0.015), 'right_knee': (134.078,),
-        'right_ankle': (15.046, 0.026), 'left_hip': (96.457, -0.145, 0.178),
-        'left_knee': (127.684,), 'left_ankle': (10.8, 0.335), 'right_toes': (86.914,),
-        'left_toes': (20.363,),
+        'spine_lumbar': (-25.621, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (28.698, -0.214, -0.085), 'right_knee': (130.717,),
+        'right_ankle': (15.049, 0.153), 'left_hip': (106.414, -25.0, 14.189),
+        'left_knee': (133.37,), 'left_ankle': (-18.019, 29.277), 'right_toes': (86.836,),
+        'left_toes': (40.113,),
     })
-    human.KeyRoot(20.3, (3.209, 41.267, 37.579), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.3, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.3, {
-        'spine_lumbar': (0.941, 0.0, 0.0), 'spine_thoracic': (0.143, 0.0, 0.0),
-        'right_hip': (32.658, 0.0, 0.0), 'right_knee': (134.703,), 'right_ankle': (15.376, 0.0),
-        'left_hip': (93.997, 0.0, 0.0), 'left_knee': (126.997,), 'left_ankle': (20.0, 0.0),
-        'right_toes': (86.539,), 'left_toes': (12.977,),
+        'spine_lumbar': (-29.633, 20.0, 0.0), 'spine_thoracic': (-7.595, 10.0, 0.0),
+        'right_hip': (28.189, -0.481, -0.185), 'right_knee': (130.238,),
+        'right_ankle': (15.056, 0.313), 'left_hip': (99.669, -13.239, 8.826),
+        'left_knee': (127.309,), 'left_ankle': (-16.285, 16.935), 'right_toes': (86.696,),
+        'left_toes': (42.118,),
     })
-    human.KeyRoot(20.4, (3.978, 45.913, 33.6), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.4, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.4, {
-        'spine_lumbar': (11.865, 0.122, 0.0), 'spine_thoracic': (1.976, 0.022, 0.0),
-        'right_hip': (35.75, -0.031, 0.081), 'right_knee': (130.764,), 'right_ankle': (20.0, 0.087),
-        'left_hip': (88.888, 0.007, -0.06), 'left_knee': (116.813,), 'left_ankle': (20.0, -0.06),
-        'right_toes': (74.913,), 'left_toes': (7.921,),
+        'spine_lumbar': (-6.473, 8.302, 0.0), 'spine_thoracic': (-4.013, 3.384, 0.0),
+        'right_hip': (31.962, -0.038, -0.017), 'right_knee': (133.967,),
+        'right_ankle': (15.046, 0.029), 'left_hip': (96.735, -0.177, 0.211),
+        'left_knee': (127.733,), 'left_ankle': (9.607, 0.397), 'right_toes': (86.913,),
+        'left_toes': (21.317,),
     })
-    human.KeyRoot(20.5, (5.082, 63.964, 33.244), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.5, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.5, {
-        'spine_lumbar': (14.316, 3.17, 0.0), 'spine_thoracic': (2.369, 0.568, 0.0),
-        'right_hip': (26.588, 0.198, 1.33), 'right_knee': (101.578,), 'right_ankle': (20.0, 1.346),
-        'left_hip': (64.703, -0.43, -0.998), 'left_knee': (86.717,), 'left_ankle': (20.0, -1.087),
-        'right_toes': (54.948,), 'left_toes': (2.049,),
+        'spine_lumbar': (1.049, 0.0, 0.0), 'spine_thoracic': (0.163, 0.0, 0.0),
+        'right_hip': (32.725, 0.0, 0.0), 'right_knee': (134.767,), 'right_ankle': (15.337, 0.0),
+        'left_hip': (94.048, 0.0, 0.0), 'left_knee': (127.0,), 'left_ankle': (20.0, 0.0),
+        'right_toes': (86.575,), 'left_toes': (12.93,),
     })
-    human.KeyRoot(20.6, (6.331, 75.581, 40.058), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.6, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.6, {
-        'spine_lumbar': (-1.71, 9.848, 0.0), 'spine_thoracic': (-0.436, 1.776, 0.0),
-        'right_hip': (8.501, 1.931, 2.38), 'right_knee': (70.951,), 'right_ankle': (20.0, 3.067),
-        'left_hip': (45.804, -2.047, -2.104), 'left_knee': (65.778,),
-        'left_ankle': (19.999, -2.935), 'right_toes': (42.45,), 'left_toes': (0.022,),
+        'spine_lumbar': (11.398, 0.087, 0.0), 'spine_thoracic': (1.9, 0.015, 0.0),
+        'right_hip': (35.735, -0.023, 0.058), 'right_knee': (131.627,),
+        'right_ankle': (20.0, 0.063), 'left_hip': (89.746, 0.006, -0.043), 'left_knee': (117.9,),
+        'left_ankle': (19.999, -0.043), 'right_toes': (75.79,), 'left_toes': (8.148,),
     })
-    human.KeyRoot(20.7, (8.579, 83.689, 38.102), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.7, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.7, {
-        'spine_lumbar': (8.531, 14.895, 0.0), 'spine_thoracic': (1.134, 2.665, 0.0),
-        'right_hip': (-3.264, 3.635, 1.473), 'right_knee': (42.03,), 'right_ankle': (20.0, 3.923),
-        'left_hip': (33.319, -3.35, -2.2), 'left_knee': (39.56,), 'left_ankle': (6.305, -4.007),
-        'right_toes': (25.311,),
+        'spine_lumbar': (14.357, 2.873, 0.0), 'spine_thoracic': (2.375, 0.515, 0.0),
+        'right_hip': (27.113, 0.156, 1.227), 'right_knee': (102.784,), 'right_ankle': (20.0, 1.237),
+        'left_hip': (65.605, -0.374, -0.92), 'left_knee': (87.914,), 'left_ankle': (20.0, -0.994),
+        'right_toes': (55.625,), 'left_toes': (2.34,),
     })
-    human.KeyRoot(20.8, (9.596, 85.871, 36.289), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.8, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.8, {
-        'spine_lumbar': (22.264, 16.653, 0.0), 'spine_thoracic': (-5.011, 3.145, 0.0),
-        'right_hip': (-7.038, 4.168, 0.967), 'right_knee': (31.28,), 'right_ankle': (18.237, 4.279),
-        'left_hip': (28.147, -3.865, -2.065), 'left_knee': (26.977,), 'left_ankle': (-1.1, -4.381),
-        'right_toes': (20.073,),
+        'spine_lumbar': (-0.927, 9.644, 0.0), 'spine_thoracic': (-0.288, 1.74, 0.0),
+        'right_hip': (9.259, 1.86, 2.393), 'right_knee': (72.145,), 'right_ankle': (20.0, 3.033),
+        'left_hip': (46.408, -1.99, -2.09), 'left_knee': (66.387,), 'left_ankle': (19.999, -2.886),
+        'right_toes': (42.883,), 'left_toes': (0.027,),
     })
-    human.KeyRoot(20.9, (10.037, 86.114, 51.031), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.9, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.9, {
-        'spine_lumbar': (51.349, -1.637, 0.0), 'spine_thoracic': (4.065, -0.211, 0.0),
-        'right_hip': (-14.983, 5.693, 3.814), 'right_knee': (27.257,),
-        'right_ankle': (-6.474, 6.843), 'left_hip': (22.775, -6.084, -2.548),
-        'left_knee': (36.605,), 'left_ankle': (13.97, -6.596), 'right_toes': (48.816,),
+        'spine_lumbar': (7.984, 14.755, 0.0), 'spine_thoracic': (1.059, 2.641, 0.0),
+        'right_hip': (-2.9, 3.588, 1.523), 'right_knee': (42.98,), 'right_ankle': (20.0, 3.899),
+        'left_hip': (33.685, -3.312, -2.205), 'left_knee': (40.45,), 'left_ankle': (6.829, -3.979),
+        'right_toes': (25.897,),
     })
-    human.KeyRoot(21.0, (10.141, 89.342, 53.738), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.0, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
     human.KeyJoints(21.0, {
-        'spine_lumbar': (47.257, -2.876, 0.0), 'spine_thoracic': (7.719, -0.426, 0.0),
-        'right_hip': (-14.94, 5.685, 5.666), 'right_knee': (27.039,),
-        'right_ankle': (-17.806, 7.986), 'left_hip': (12.165, -6.594, -1.418),
-        'left_knee': (19.083,), 'left_ankle': (7.0, -6.745), 'right_toes': (59.998,),
+        'spine_lumbar': (21.829, 16.552, 0.0), 'spine_thoracic': (-4.174, 3.104, 0.0),
+        'right_hip': (-6.868, 4.15, 0.957), 'right_knee': (31.478,), 'right_ankle': (18.509, 4.258),
+        'left_hip': (28.254, -3.842, -2.062), 'left_knee': (26.967,), 'left_ankle': (-1.218, -4.36),
+        'right_toes': (19.831,),
     })
-    human.KeyRoot(21.1, (9.286, 90.232, 62.858), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.1, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
     human.KeyJoints(21.1, {
-        'spine_lumbar': (17.404, -1.006, 0.0), 'spine_thoracic': (5.423, -0.176, 0.0),
-        'right_hip': (-14.945, 6.496, 4.367), 'right_knee': (28.863,),
-        'right_ankle': (-5.779, 7.316), 'left_hip': (-0.469, -7.222, 0.059), 'left_knee': (6.199,),
-        'left_ankle': (6.665, -7.223), 'right_toes': (48.343,),
+        'spine_lumbar': (50.162, -0.761, 0.0), 'spine_thoracic': (3.4, -0.057, 0.0),
+        'right_hip': (-14.98, 5.689, 3.64), 'right_knee': (27.272,), 'right_ankle': (-5.256, 6.746),
+        'left_hip': (23.117, -6.034, -2.57), 'left_knee': (36.859,), 'left_ankle': (13.881, -6.558),
+        'right_toes': (47.611,),
     })
-    human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.2, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
     human.KeyJoints(21.2, {
-        'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
-        'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
-        'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
+        'spine_lumbar': (47.857, -2.919, 0.0), 'spine_thoracic': (7.438, -0.433, 0.0),
+        'right_hip': (-14.91, 5.676, 5.662), 'right_knee': (27.02,),
+        'right_ankle': (-17.847, 7.981), 'left_hip': (12.589, -6.581, -1.466),
+        'left_knee': (19.87,), 'left_ankle': (7.365, -6.742), 'right_toes': (59.998,),
     })
-    human.KeyRoot(21.3, (7.433, 90.141, 66.587), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.3, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
     human.KeyJoints(21.3, {
-        'spine_lumbar': (2.848, -4.453, 0.0), 'spine_thoracic': (0.454, -0.803, 0.0),
-        'right_hip': (3.235, 6.573, 0.606), 'right_ankle': (17.293, 6.863),
-        'left_hip': (-3.955, -6.431, 0.44), 'left_knee': (4.662,), 'left_ankle': (8.382, -6.387),
-        'right_toes': (2.302,), 'left_toes': (0.151,),
+        'spine_lumbar': (18.591, -1.1, 0.0), 'spine_thoracic': (6.071, -0.19, 0.0),
+        'right_hip': (-14.907, 6.444, 4.463), 'right_knee': (28.859,),
+        'right_ankle': (-6.571, 7.339), 'left_hip': (0.038, -7.194, -0.005), 'left_knee': (6.455,),
+        'left_ankle': (6.418, -7.194), 'right_toes': (49.126,),
     })
-    human.KeyRoot(21.4, (2.022, 90.983, 58.188), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.4, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
     human.KeyJoints(21.4, {
-        'spine_lumbar': (8.853, -8.877, 0.0), 'spine_thoracic': (1.456, -1.599, 0.0),
-        'right_hip': (1.912, 1.748, 0.058), 'right_knee': (6.491,), 'right_ankle': (4.58, 1.749),
-        'left_hip': (1.912, -1.748, -0.058), 'left_knee': (6.491,), 'left_ankle': (4.58, -1.749),
+        'spine_lumbar': (2.79, -1.045, 0.0), 'spine_thoracic': (0.496, -0.19, 0.0),
+        'right_hip': (-2.004, 7.135, 2.848), 'right_knee': (38.171,),
+        'right_ankle': (16.568, 7.702), 'left_hip': (-4.361, -7.282, 0.554), 'left_knee': (5.203,),
+        'left_ankle': (9.528, -7.303), 'right_toes': (23.818,), 'left_toes': (0.0,),
+    })
+    human.KeyRoot(21.5, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.5, {
+        'spine_lumbar': (2.697, -4.136, 0.0), 'spine_thoracic': (0.433, -0.746, 0.0),
+        'right_hip': (3.502, 6.661, 0.71), 'right_knee': (23.67,), 'right_ankle': (17.784, 6.966),
+        'left_hip': (-4.019, -6.514, 0.453), 'left_knee': (4.59,), 'left_ankle': (8.391, -6.476),
+        'right_toes': (2.803,), 'left_toes': (0.139,),
+    })
+    human.KeyRoot(21.6, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.6, {
+        'spine_lumbar': (9.419, -9.439, 0.0), 'spine_thoracic': (1.543, -1.699, 0.0),
+        'right_hip': (1.814, 1.934, 0.061), 'right_knee': (6.69,), 'right_ankle': (4.877, 1.935),
+        'left_hip': (1.814, -1.934, -0.061), 'left_knee': (6.69,), 'left_ankle': (4.877, -1.935),
         'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.463411, {
+    human.KeyRoot(21.667309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.667309, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

@@ -51,15 +51,8 @@ from mtlc.passes.kneel import (
 )
 from mtlc.passes.locomotion import LegModel, leg_fk, leg_ik, leg_model
 from mtlc.passes.stance import WIDE_RESULT
-from mtlc.passes.state import (
-    PoseState,
-    mark,
-    reanchor,
-    standing_before,
-    start_posture_from,
-)
+from mtlc.passes.state import TRUNK_DOFS, PoseState, mark, reanchor, start_posture_from
 
-TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 LEG_DOFS = tuple(
     f"{s}_{d}"
     for s in ("r", "l")
@@ -992,7 +985,7 @@ def _start_from(seg: Segment, state: PoseState, q0: FloatArray, fade: bool = Tru
     assert kf is not None
     first = q0[[state.skel.dof_index(n) for n in kf.dofs]]
     if fade:
-        start_posture_from(seg, first, standing_before(state.ir, seg))
+        start_posture_from(seg, first, state.standing_before(seg))
     else:
         kf.q[0] = first
     if kf.root_position is not None:

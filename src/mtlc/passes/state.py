@@ -34,7 +34,7 @@ from mtlc.passes.interpolate import (
 )
 from mtlc.passes.profile import minimum_jerk
 
-TRUNK_PREFIXES = ("lumbar_", "thorax_")  # the spine's dofs, which a reach leans
+TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
 FEW_TIMES = 48  # up to this many times ``q_at_many`` bisects per time (its set-up costs more)
@@ -89,6 +89,22 @@ class PoseState:
             for seg in ir.segments
             if seg.kind == "locomotion" and seg.keyframes is not None
         ]
+        # the whole-body postures by start (the first of equal starts), for ``standing_before``
+        self._posture_starts: list[float] = []
+        self._posture_kinds: list[Any] = []
+        for seg in sorted(ir.on_track("root"), key=lambda s: s.start):
+            if seg.kind == "posture" and not (
+                self._posture_starts and seg.start == self._posture_starts[-1]
+            ):
+                self._posture_starts.append(seg.start)
+                self._posture_kinds.append(seg.goal.params.get("posture"))
+
+    def standing_before(self, seg: Segment) -> bool:
+        """The body stands (or bends) when ``seg`` starts: no squat, kneel or sit is its
+        posture (the last whole-body posture that starts before it, found by bisection: a scan
+        of every segment for every posture, in each pass's restating, grew with their product)."""
+        k = bisect_left(self._posture_starts, seg.start - 1e-9)
+        return k == 0 or self._posture_kinds[k - 1] in ("stand", "bend")
 
     def add(self, seg: Segment) -> None:
         """Index a segment's keyframes (call after setting ``seg.keyframes``)."""
@@ -371,22 +387,11 @@ def reanchor(
         q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
         if seg.kind == "posture":
-            start_posture_from(seg, q[idx], standing_before(ir, seg))
+            start_posture_from(seg, q[idx], state.standing_before(seg))
             if kf.root_position is not None:
                 kf.root_position[0, 1] = state.height_at(seg.start, skip=together)
         else:
             kf.q[0] = q[idx]
-
-
-def standing_before(ir: MotionIR, seg: Segment) -> bool:
-    """The body stands (or bends) when ``seg`` starts: no squat, kneel or sit is its posture."""
-    before = [
-        s
-        for s in ir.on_track("root")
-        if s.kind == "posture" and s is not seg and s.start < seg.start - 1e-9
-    ]
-    last = max(before, key=lambda s: s.start, default=None)
-    return last is None or last.goal.params.get("posture") in ("stand", "bend")
 
 
 def start_posture_from(seg: Segment, first: FloatArray, fade: bool = True) -> None:
@@ -401,7 +406,7 @@ def start_posture_from(seg: Segment, first: FloatArray, fade: bool = True) -> No
     the floor, tests/passes/test_lift_carry_pose.py)."""
     kf = seg.keyframes
     assert kf is not None
-    trunk = [k for k, name in enumerate(kf.dofs) if name.startswith(TRUNK_PREFIXES)]
+    trunk = [k for k, name in enumerate(kf.dofs) if name in TRUNK_DOFS]
     after_kneel = (seg.result or {}).get("root") == "keyed"  # the kneel's plan paces it
     if fade and trunk and not after_kneel:
         change = first[trunk] - kf.q[0, trunk]

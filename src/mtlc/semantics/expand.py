@@ -115,6 +115,9 @@ class Expander:
         self._kinds: dict[int, str | None] = {}
         self._callees: dict[int, _Callee] = {}  # by call statement
         self._plans: dict[int, _Callee] = {}  # by definition
+        # the value of a literal with a unit (`90 deg`) or a vector of literals, by node: the
+        # same wherever it is evaluated, so worked out once (an overflow is reported each time)
+        self._literals: dict[int, Any] = {}
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
@@ -539,16 +542,23 @@ class Expander:
     def call(self, call: ast.Call, env: _Env, t: float) -> float:
         plan = self._callee(call)
         params = plan.params
+        rules = plan.rules
         bound: dict[str, Any] = {}
         for i, arg in enumerate(call.args):
             name = arg.name if arg.name is not None else params[i].name
-            bound[name] = self.eval(arg.value, env)
-            rule = plan.rules[name]
-            if rule is not None:  # a parameter passed on: checked where it is written
-                self.check(rule, bound[name], env, arg.value)
-        for p in params:
-            if p.name not in bound and p.default is not None:
-                bound[p.name] = self.eval(p.default, _Env(plan.scope, {}, env.trace))
+            value = bound[name] = self.eval(arg.value, env)
+            rule = rules[name]
+            # a parameter passed on: checked where it is written (``check``, called only to
+            # report: most values are in range)
+            if rule is not None and V.problem(rule, value) is not None:
+                self.check(rule, value, env, arg.value)
+        if len(bound) < len(params):
+            defaults: _Env | None = None  # the definition's scope: one for all its defaults
+            for p in params:
+                if p.name not in bound and p.default is not None:
+                    if defaults is None:
+                        defaults = _Env(plan.scope, {}, env.trace)
+                    bound[p.name] = self.eval(p.default, defaults)
         trace = (*env.trace, (plan.decl.name, call.span))
         inner = _Env(plan.scope, bound, trace)
         for stmt in plan.timings:
@@ -647,9 +657,8 @@ class Expander:
             name = arg.name or sig.params[i].name
             values[name], written[name] = self.eval(arg.value, env), arg.value
         kind = stmt.kind
-        for (posture, name), rule in V.POSTURE_ARGS.items():
-            if posture == kind:  # the ranges a body can take
-                self.check(rule, values[name], env, written.get(name, stmt))
+        for name, rule in _posture_rules(kind):  # the ranges a body can take
+            self.check(rule, values[name], env, written.get(name, stmt))
         if kind == "twist":
             return self.twist(stmt, env, t, timing, values)
         if (
@@ -812,7 +821,8 @@ class Expander:
         else:
             assert isinstance(rule, Timing), rule
             seconds = self._mtm_tmu(rule, stmt, env, distance) * T.TMU_SECONDS
-        self.check(V.DURATION, seconds, env, stmt)
+        if V.problem(V.DURATION, seconds) is not None:
+            self.check(V.DURATION, seconds, env, stmt)
         return seconds
 
     def _mtm_tmu(self, rule: Timing, stmt: ast.Stmt, env: _Env, distance: float) -> float:
@@ -876,11 +886,17 @@ class Expander:
             assert isinstance(expr, ast.Number)
             if expr.unit is None:
                 return int(expr.value) if expr.is_int else expr.value
-            return self._computed(expr.value * T.UNITS[expr.unit][1], env, expr)
+            value = self._literals.get(id(expr), _UNRESOLVED)
+            if value is _UNRESOLVED:
+                value = self._computed(expr.value * T.UNITS[expr.unit][1], env, expr)
+                self._literals[id(expr)] = value
+            return value
         if kind is ast.Name:
             assert isinstance(expr, ast.Name)
             name = expr.name
-            resolved = self._kind(expr)
+            resolved = self._kinds.get(id(expr), _UNRESOLVED)  # self._kind(expr), inline
+            if resolved is _UNRESOLVED:
+                resolved = self._kind(expr)
             if resolved == "local":
                 return env.locals[name]
             if resolved == "site":
@@ -895,9 +911,16 @@ class Expander:
             return name  # an enum member: its name is its value
         if kind is ast.Vector:
             assert isinstance(expr, ast.Vector)
+            value = self._literals.get(id(expr), _UNRESOLVED)
+            if value is not _UNRESOLVED:
+                return value
             factor = T.UNITS[expr.unit][1] if expr.unit is not None else 1.0
-            value = tuple(float(self.eval(i, env)) * factor for i in expr.items)
-            return self._computed(value, env, expr)
+            value = self._computed(
+                tuple(float(self.eval(i, env)) * factor for i in expr.items), env, expr
+            )
+            if all(_is_literal(i) for i in expr.items):
+                self._literals[id(expr)] = value
+            return value
         if kind is ast.Attr:
             assert isinstance(expr, ast.Attr)
             return self._attr(expr, env)
@@ -986,6 +1009,21 @@ class Expander:
                 f"to {V.MAX_INT:.0e})",
             )
         return value
+
+
+@cache
+def _posture_rules(kind: str) -> tuple[tuple[str, V.Range], ...]:
+    """The ranges of a posture's arguments (``values.POSTURE_ARGS``), by parameter, in order."""
+    return tuple(
+        (name, rule) for (posture, name), rule in V.POSTURE_ARGS.items() if posture == kind
+    )
+
+
+def _is_literal(expr: ast.Expr) -> bool:
+    """A number as written, negated or not: its value is the same wherever it is evaluated."""
+    while type(expr) is ast.Unary:
+        expr = expr.operand
+    return type(expr) is ast.Number
 
 
 def _load(timing: Any) -> dict[str, float]:

@@ -49,6 +49,21 @@ class Timing:
     args: dict[str, Any]
 
 
+# the MTM-1 rules that time a primitive with no `over` and no element `time`: made once (a
+# timing is only read)
+_GRASP = Timing("grasp", {"case": "G1A"})
+_RELEASE = Timing("release", {})
+_LOOK = Timing("code", {"code": "EF"})
+_REACH = Timing("reach", {"case": "B"})
+_WALK = Timing("walk", {})
+
+
+@cache
+def _code_timing(code: str) -> Timing:
+    """``Timing("code", {"code": code})``, one per code."""
+    return Timing("code", {"code": code})
+
+
 class _BudgetExceeded(Exception):
     def __init__(
         self, span: Span, needed: int | None, idle: int = 0, help: str | None = None
@@ -578,11 +593,7 @@ class Expander:
                 return self.walk(stmt, env, t, timing)
             case ast.Grip():
                 hands = HANDS[self.eval(stmt.hand, env)]
-                default = (
-                    Timing("grasp", {"case": "G1A"})
-                    if stmt.state == "closed"
-                    else Timing("release", {})
-                )
+                default = _GRASP if stmt.state == "closed" else _RELEASE
                 d = self.duration(timing, default, stmt, env)
                 for h in hands:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
@@ -593,7 +604,7 @@ class Expander:
                 return t + d
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
-                d = self.duration(timing, Timing("code", {"code": "EF"}), stmt, env)
+                d = self.duration(timing, _LOOK, stmt, env)
                 self.emit(
                     "gaze",
                     "head",
@@ -623,7 +634,7 @@ class Expander:
         if stmt.approach is not None:
             self.check(V.APPROACH, approach, env, stmt.approach)
         distance = max(_dist(self._hand(h), target) for h in hands)
-        d = self.duration(timing, Timing("reach", {"case": "B"}), stmt, env, distance)
+        d = self.duration(timing, _REACH, stmt, env, distance)
         if approach == 0:
             share = 0.0  # no approach point: the whole goal is target approaching
         elif distance > 0:
@@ -682,7 +693,7 @@ class Expander:
                 default_code = "SIT"
             else:
                 default_code = "B"
-        d = self.duration(timing, Timing("code", {"code": default_code}), stmt, env)
+        d = self.duration(timing, _code_timing(default_code), stmt, env)
         params = {"posture": kind, **{k: v for k, v in values.items() if k != "hand"}}
         self.emit("posture", "body", t, t + d, params, stmt, env)
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
@@ -787,7 +798,7 @@ class Expander:
             goal, name = (x + dx, y, z + dz), None
         facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
         distance = _dist(self.root, goal)
-        d = self.duration(timing, Timing("walk", {}), stmt, env, distance)
+        d = self.duration(timing, _WALK, stmt, env, distance)
         params = {
             "site": name,
             "from": self.root,

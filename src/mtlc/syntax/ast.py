@@ -8,6 +8,7 @@ tree stays well-formed after a reported error.
 from __future__ import annotations
 
 import dataclasses
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -26,8 +27,11 @@ def _node(cls: type[_N]) -> type[_N]:
     on every command that parses (`mtlc check` starts in 0.15 s). This makes the same class:
     the same fields (``dataclasses.fields``, ``replace``), methods (the same source), slots,
     ``__match_args__``, docstring and parameters; tests/test_ast_nodes.py compares
-    every node class with the one ``_dataclass_node`` makes.
+    every node class with the one ``_dataclass_node`` makes. On another Python than 3.11,
+    whose dataclasses write other bodies, it is ``_dataclass_node`` itself.
     """
+    if sys.version_info[:2] != (3, 11):  # what follows is Python 3.11's dataclasses
+        return _dataclass_node(cls)
     own = cls.__dict__.get("__annotations__", {})  # noqa: RUF063 - as dataclasses reads them
     fields: dict[str, dataclasses.Field[Any]] = {}
     for base in cls.__mro__[-1:0:-1]:

@@ -12,11 +12,12 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from mtlc.diagnostics import DiagnosticSink
+from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.frontend import DEFAULT_MOTION_BUDGET, run_frontend
 from mtlc.semantics import mtm
 from mtlc.semantics import values as V
 from mtlc.semantics.timeline import ManikinSpec
+from mtlc.syntax import ast
 
 HEADER = "use stdlib.actions\nuse stdlib.elements\n"
 SCENE = "scene s {\n    site a at (0, 100, 50) cm normal (0, 0, -1)\n}\n"
@@ -226,6 +227,9 @@ def _values(rule: V.Range) -> st.SearchStrategy[tuple[V.Range, object]]:
             st.integers(min_value=-(10**30), max_value=10**30),
             st.booleans(),
             st.tuples(st.floats(), st.floats(), st.floats()),
+            st.lists(st.sampled_from(_near_bounds(rule)), min_size=0, max_size=3).map(tuple),
+            st.tuples(st.floats(-1e-8, 1e-8), st.floats(-1e-8, 1e-8), st.floats(-1e-8, 1e-8)),
+            st.tuples(st.integers(-5, 5), st.floats(-1.0, 1.0), st.booleans()),
             st.text(max_size=3),
         ),
     )
@@ -277,3 +281,59 @@ def test_for_type_table_says_what_the_comparisons_said() -> None:
     types += [T.ListType(t) for t in list(types)]
     for type_ in types:
         assert V.for_type(type_) is _for_type_reference(type_), type_
+
+
+_SPAN = Span("t.mtask", 1, 1, 1, 2, 0, 1)
+
+
+def _number_nodes() -> st.SearchStrategy[ast.Expr]:
+    return st.builds(
+        lambda value, is_int, unit: ast.Number(
+            span=_SPAN, value=float(int(value)) if is_int else value, is_int=is_int, unit=unit
+        ),
+        st.one_of(st.floats(-1e6, 1e6), st.sampled_from([0.0, -0.0, 1e308, 5e-324])),
+        st.booleans(),
+        st.sampled_from([None, "cm", "deg", "kg", "s", "furlong"]),
+    )
+
+
+def _expressions() -> st.SearchStrategy[ast.Expr]:
+    leaves = st.one_of(
+        _number_nodes(),
+        st.just(ast.Name(span=_SPAN, name="x")),
+        st.just(ast.String(span=_SPAN, value="s")),
+    )
+    return st.recursive(
+        leaves,
+        lambda inner: st.one_of(
+            st.builds(lambda e: ast.Unary(span=_SPAN, op="-", operand=e), inner),
+            st.builds(
+                lambda op, a, b: ast.Binary(span=_SPAN, op=op, left=a, right=b),
+                st.sampled_from("+-*/"),
+                inner,
+                inner,
+            ),
+            st.builds(
+                lambda items, unit: ast.Vector(span=_SPAN, items=tuple(items), unit=unit),
+                st.lists(inner, min_size=0, max_size=3),
+                st.sampled_from([None, "cm", "m", "nope"]),
+            ),
+        ),
+        max_leaves=8,
+    )
+
+
+@settings(max_examples=1500, deadline=None)
+@given(expr=_expressions())
+def test_fold_dispatch_says_what_the_class_patterns_say(expr: ast.Expr) -> None:
+    """values._fold dispatches on the node's class (issue 21): the same value, or the same
+    refusal, as the class patterns it replaced (values._fold_reference), on any expression."""
+    try:
+        expected: object = V._fold_reference(expr)
+    except (V._NotConstant, ArithmeticError, TypeError, KeyError, ValueError) as exc:
+        expected = type(exc)
+    try:
+        got: object = V._fold(expr)
+    except (V._NotConstant, ArithmeticError, TypeError, KeyError, ValueError) as exc:
+        got = type(exc)
+    assert repr(got) == repr(expected)

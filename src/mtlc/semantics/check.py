@@ -90,6 +90,9 @@ class Checker:
         # its declaration: expansion places them
         self.meshes: dict[int, MeshFile | None] = {}
         self.model_files: list[Path] = []  # every model file named, read or not (serve watches)
+        # each definition's parameters as check_args takes them, by id of the declaration
+        # (worked out once, not per call: the trees live as long as the checker)
+        self._signatures: dict[int, list[tuple[str, T.Type, bool]]] = {}
 
     # ------------------------------------------------------------ declarations
     def check_module(self, scope: Scope) -> None:
@@ -421,7 +424,9 @@ class Checker:
                 stmt, what, "inside an element", "define an element that does this and call it"
             )
             return
-        match stmt:
+        match stmt:  # (no node class has a subclass: the order is the commonest first)
+            case ast.Call():
+                self.check_call(stmt, env)
             case ast.Block(stmts=_):
                 self.check_block(stmt, env)
             case ast.Parallel(body=body):
@@ -431,8 +436,6 @@ class Checker:
                 self.check_block(body, env)
             case ast.ForEach():
                 self.check_for(stmt, env)
-            case ast.Call():
-                self.check_call(stmt, env)
             case ast.TimeSetting(duration=duration):
                 self.expect_timing(duration, env)
             case ast.Goal():
@@ -539,10 +542,12 @@ class Checker:
             )
         decl = sym.decl
         assert isinstance(decl, ast.Definition)
-        params = [
-            (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None)
-            for p in decl.params
-        ]
+        params = self._signatures.get(id(decl))
+        if params is None:
+            params = self._signatures[id(decl)] = [
+                (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None)
+                for p in decl.params
+            ]
         if sym.name not in sym.module.tree.broken_names:  # its signature may be cut short
             self.check_args(sym.name, params, call.args, call.span, env)
         else:

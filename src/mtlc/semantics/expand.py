@@ -49,6 +49,21 @@ class Timing:
     args: dict[str, Any]
 
 
+# the MTM-1 rules that time a primitive with no `over` and no element `time`: made once (a
+# timing is only read)
+_GRASP = Timing("grasp", {"case": "G1A"})
+_RELEASE = Timing("release", {})
+_LOOK = Timing("code", {"code": "EF"})
+_REACH = Timing("reach", {"case": "B"})
+_WALK = Timing("walk", {})
+
+
+@cache
+def _code_timing(code: str) -> Timing:
+    """``Timing("code", {"code": code})``, one per code."""
+    return Timing("code", {"code": code})
+
+
 class _BudgetExceeded(Exception):
     def __init__(
         self, span: Span, needed: int | None, idle: int = 0, help: str | None = None
@@ -115,6 +130,9 @@ class Expander:
         self._kinds: dict[int, str | None] = {}
         self._callees: dict[int, _Callee] = {}  # by call statement
         self._plans: dict[int, _Callee] = {}  # by definition
+        # the value of a literal with a unit (`90 deg`) or a vector of literals, by node: the
+        # same wherever it is evaluated, so worked out once (an overflow is reported each time)
+        self._literals: dict[int, Any] = {}
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
@@ -539,16 +557,23 @@ class Expander:
     def call(self, call: ast.Call, env: _Env, t: float) -> float:
         plan = self._callee(call)
         params = plan.params
+        rules = plan.rules
         bound: dict[str, Any] = {}
         for i, arg in enumerate(call.args):
             name = arg.name if arg.name is not None else params[i].name
-            bound[name] = self.eval(arg.value, env)
-            rule = plan.rules[name]
-            if rule is not None:  # a parameter passed on: checked where it is written
-                self.check(rule, bound[name], env, arg.value)
-        for p in params:
-            if p.name not in bound and p.default is not None:
-                bound[p.name] = self.eval(p.default, _Env(plan.scope, {}, env.trace))
+            value = bound[name] = self.eval(arg.value, env)
+            rule = rules[name]
+            # a parameter passed on: checked where it is written (``check``, called only to
+            # report: most values are in range)
+            if rule is not None and V.problem(rule, value) is not None:
+                self.check(rule, value, env, arg.value)
+        if len(bound) < len(params):
+            defaults: _Env | None = None  # the definition's scope: one for all its defaults
+            for p in params:
+                if p.name not in bound and p.default is not None:
+                    if defaults is None:
+                        defaults = _Env(plan.scope, {}, env.trace)
+                    bound[p.name] = self.eval(p.default, defaults)
         trace = (*env.trace, (plan.decl.name, call.span))
         inner = _Env(plan.scope, bound, trace)
         for stmt in plan.timings:
@@ -568,11 +593,7 @@ class Expander:
                 return self.walk(stmt, env, t, timing)
             case ast.Grip():
                 hands = HANDS[self.eval(stmt.hand, env)]
-                default = (
-                    Timing("grasp", {"case": "G1A"})
-                    if stmt.state == "closed"
-                    else Timing("release", {})
-                )
+                default = _GRASP if stmt.state == "closed" else _RELEASE
                 d = self.duration(timing, default, stmt, env)
                 for h in hands:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
@@ -583,7 +604,7 @@ class Expander:
                 return t + d
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
-                d = self.duration(timing, Timing("code", {"code": "EF"}), stmt, env)
+                d = self.duration(timing, _LOOK, stmt, env)
                 self.emit(
                     "gaze",
                     "head",
@@ -613,7 +634,7 @@ class Expander:
         if stmt.approach is not None:
             self.check(V.APPROACH, approach, env, stmt.approach)
         distance = max(_dist(self._hand(h), target) for h in hands)
-        d = self.duration(timing, Timing("reach", {"case": "B"}), stmt, env, distance)
+        d = self.duration(timing, _REACH, stmt, env, distance)
         if approach == 0:
             share = 0.0  # no approach point: the whole goal is target approaching
         elif distance > 0:
@@ -647,9 +668,8 @@ class Expander:
             name = arg.name or sig.params[i].name
             values[name], written[name] = self.eval(arg.value, env), arg.value
         kind = stmt.kind
-        for (posture, name), rule in V.POSTURE_ARGS.items():
-            if posture == kind:  # the ranges a body can take
-                self.check(rule, values[name], env, written.get(name, stmt))
+        for name, rule in _posture_rules(kind):  # the ranges a body can take
+            self.check(rule, values[name], env, written.get(name, stmt))
         if kind == "twist":
             return self.twist(stmt, env, t, timing, values)
         if (
@@ -673,7 +693,7 @@ class Expander:
                 default_code = "SIT"
             else:
                 default_code = "B"
-        d = self.duration(timing, Timing("code", {"code": default_code}), stmt, env)
+        d = self.duration(timing, _code_timing(default_code), stmt, env)
         params = {"posture": kind, **{k: v for k, v in values.items() if k != "hand"}}
         self.emit("posture", "body", t, t + d, params, stmt, env)
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
@@ -778,7 +798,7 @@ class Expander:
             goal, name = (x + dx, y, z + dz), None
         facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
         distance = _dist(self.root, goal)
-        d = self.duration(timing, Timing("walk", {}), stmt, env, distance)
+        d = self.duration(timing, _WALK, stmt, env, distance)
         params = {
             "site": name,
             "from": self.root,
@@ -812,7 +832,8 @@ class Expander:
         else:
             assert isinstance(rule, Timing), rule
             seconds = self._mtm_tmu(rule, stmt, env, distance) * T.TMU_SECONDS
-        self.check(V.DURATION, seconds, env, stmt)
+        if V.problem(V.DURATION, seconds) is not None:
+            self.check(V.DURATION, seconds, env, stmt)
         return seconds
 
     def _mtm_tmu(self, rule: Timing, stmt: ast.Stmt, env: _Env, distance: float) -> float:
@@ -876,11 +897,17 @@ class Expander:
             assert isinstance(expr, ast.Number)
             if expr.unit is None:
                 return int(expr.value) if expr.is_int else expr.value
-            return self._computed(expr.value * T.UNITS[expr.unit][1], env, expr)
+            value = self._literals.get(id(expr), _UNRESOLVED)
+            if value is _UNRESOLVED:
+                value = self._computed(expr.value * T.UNITS[expr.unit][1], env, expr)
+                self._literals[id(expr)] = value
+            return value
         if kind is ast.Name:
             assert isinstance(expr, ast.Name)
             name = expr.name
-            resolved = self._kind(expr)
+            resolved = self._kinds.get(id(expr), _UNRESOLVED)  # self._kind(expr), inline
+            if resolved is _UNRESOLVED:
+                resolved = self._kind(expr)
             if resolved == "local":
                 return env.locals[name]
             if resolved == "site":
@@ -895,9 +922,16 @@ class Expander:
             return name  # an enum member: its name is its value
         if kind is ast.Vector:
             assert isinstance(expr, ast.Vector)
+            value = self._literals.get(id(expr), _UNRESOLVED)
+            if value is not _UNRESOLVED:
+                return value
             factor = T.UNITS[expr.unit][1] if expr.unit is not None else 1.0
-            value = tuple(float(self.eval(i, env)) * factor for i in expr.items)
-            return self._computed(value, env, expr)
+            value = self._computed(
+                tuple(float(self.eval(i, env)) * factor for i in expr.items), env, expr
+            )
+            if all(_is_literal(i) for i in expr.items):
+                self._literals[id(expr)] = value
+            return value
         if kind is ast.Attr:
             assert isinstance(expr, ast.Attr)
             return self._attr(expr, env)
@@ -986,6 +1020,21 @@ class Expander:
                 f"to {V.MAX_INT:.0e})",
             )
         return value
+
+
+@cache
+def _posture_rules(kind: str) -> tuple[tuple[str, V.Range], ...]:
+    """The ranges of a posture's arguments (``values.POSTURE_ARGS``), by parameter, in order."""
+    return tuple(
+        (name, rule) for (posture, name), rule in V.POSTURE_ARGS.items() if posture == kind
+    )
+
+
+def _is_literal(expr: ast.Expr) -> bool:
+    """A number as written, negated or not: its value is the same wherever it is evaluated."""
+    while type(expr) is ast.Unary:
+        expr = expr.operand
+    return type(expr) is ast.Number
 
 
 def _load(timing: Any) -> dict[str, float]:

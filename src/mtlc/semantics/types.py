@@ -153,6 +153,8 @@ TYPE_NAMES: dict[str, Type] = {
 
 
 def is_assignable(actual: Type, expected: Type) -> bool:
+    if actual is expected:  # the commonest answer (types are mostly the constants above)
+        return True
     if actual == UNKNOWN or expected == UNKNOWN:
         return True
     if isinstance(actual, Quantity) and isinstance(expected, Quantity):

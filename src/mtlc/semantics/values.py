@@ -204,7 +204,18 @@ def problem(rule: Range, value: Any) -> str | None:
         and _within(rule, value)
     ):
         return None
+    if type(value) is tuple and value and _vector_within(rule, value):
+        return None  # a vector of floats, each well in range
     return _problem(rule, value)
+
+
+def _vector_within(rule: Range, items: tuple[Any, ...]) -> bool:
+    """Every item a finite float within the bounds, pointing somewhere if it must: the vectors
+    ``_problem`` finds nothing wrong with, without its scans."""
+    for c in items:
+        if type(c) is not float or not math.isfinite(c) or not _within(rule, c):
+            return False
+    return not rule.direction or math.hypot(*items) >= MIN_DIRECTION
 
 
 def _within(rule: Range, c: float) -> bool:
@@ -288,6 +299,28 @@ def fold(expr: ast.Expr) -> Any:
 
 
 def _fold(expr: ast.Expr) -> Any:
+    kind = type(expr)  # the node classes have no subclasses: one look-up, no class patterns
+    if kind is ast.Number:
+        unit = expr.unit  # type: ignore[union-attr]
+        if unit is None:
+            return int(expr.value) if expr.is_int else expr.value  # type: ignore[union-attr]
+        if unit in T.UNITS:
+            return expr.value * T.UNITS[unit][1]  # type: ignore[union-attr]
+    elif kind is ast.Unary:
+        v = _fold(expr.operand)  # type: ignore[union-attr]
+        return tuple(-c for c in v) if isinstance(v, tuple) else -v
+    elif kind is ast.Binary:
+        op, left, right = expr.op, expr.left, expr.right  # type: ignore[union-attr]
+        return _bound(arith(op, _fold(left), _fold(right)))
+    elif kind is ast.Vector:
+        unit = expr.unit  # type: ignore[union-attr]
+        factor = T.UNITS[unit][1] if unit is not None else 1.0
+        return tuple(_bound(float(_fold(i)) * factor) for i in expr.items)  # type: ignore[union-attr]
+    raise _NotConstant
+
+
+def _fold_reference(expr: ast.Expr) -> Any:
+    """``_fold`` as class patterns: the reference tests compare the quick dispatch with."""
     match expr:
         case ast.Number(unit=None, is_int=True, value=v):
             return int(v)
@@ -296,13 +329,13 @@ def _fold(expr: ast.Expr) -> Any:
         case ast.Number(unit=unit, value=v) if unit in T.UNITS:
             return v * T.UNITS[unit][1]
         case ast.Unary(operand=operand):
-            v = _fold(operand)
+            v = _fold_reference(operand)
             return tuple(-c for c in v) if isinstance(v, tuple) else -v
         case ast.Binary(op=op, left=left, right=right):
-            return _bound(arith(op, _fold(left), _fold(right)))
+            return _bound(arith(op, _fold_reference(left), _fold_reference(right)))
         case ast.Vector(items=items, unit=unit):
             factor = T.UNITS[unit][1] if unit is not None else 1.0
-            return tuple(_bound(float(_fold(i)) * factor) for i in items)
+            return tuple(_bound(float(_fold_reference(i)) * factor) for i in items)
     raise _NotConstant
 
 

@@ -54,20 +54,26 @@ def _master_regex() -> re.Pattern[str]:
 @cache
 def _folded_regex() -> re.Pattern[str]:
     """_master_regex with the spaces before a lexeme folded into its match: half as many
-    matches on indented code. ``WS`` is left only for spaces that end the text."""
+    matches on indented code. ``WS`` is left only for spaces that end the text.
+
+    The commonest lexemes are tried first (names, numbers, punctuation: a fifth less time in
+    the regex). The order decides nothing else: the alternatives start with different
+    characters (a word character, a digit or `.`, punctuation, a line break, `#`, `"`),
+    except ``NUMBER`` and the `.` of ``PUNCT`` (a number first, as in _master_regex),
+    ``STRING`` and ``BADSTRING``, ``WS`` and ``BAD``, each kept in _master_regex's order."""
     lx = lexicon()
     punct = "|".join(re.escape(p) for p in sorted(lx.punctuation, key=len, reverse=True))
     return re.compile(
         r"[ \t\f\v]*(?:"
         + "|".join(
             [
+                f"(?P<NAME>{lx.patterns['NAME']})",
+                f"(?P<NUMBER>{lx.patterns['NUMBER']})",
+                f"(?P<PUNCT>{punct})",
                 r"(?P<NL>\r\n|\n|\r)",
                 r"(?P<COMMENT>\#[^\r\n]*)",
-                f"(?P<NUMBER>{lx.patterns['NUMBER']})",
-                f"(?P<NAME>{lx.patterns['NAME']})",
                 f"(?P<STRING>{lx.patterns['STRING']})",
                 r'(?P<BADSTRING>"[^\r\n]*)',
-                f"(?P<PUNCT>{punct})",
                 r"(?P<WS>[ \t\f\v]+)",
                 r"(?P<BAD>[\s\S])",
             ]

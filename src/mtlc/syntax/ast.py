@@ -8,110 +8,14 @@ tree stays well-formed after a reported error.
 from __future__ import annotations
 
 import dataclasses
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from mtlc.diagnostics import Span
 
+_node = dataclass(frozen=True, slots=True, kw_only=True)
 _N = TypeVar("_N")
-_dataclass_node = dataclass(frozen=True, slots=True, kw_only=True)  # what ``_node`` makes
-
-
-def _node(cls: type[_N]) -> type[_N]:
-    """``@dataclass(frozen=True, slots=True, kw_only=True)``, made with one ``exec`` per class.
-
-    Why: dataclasses compiles each generated method on its own (six per class here) and
-    reads the class's signature back for its docstring: 0.024 s of CPU for the 44 node classes,
-    on every command that parses (`mtlc check` starts in 0.15 s). This makes the same class:
-    the same fields (``dataclasses.fields``, ``replace``), methods (the same source), slots,
-    ``__match_args__``, docstring and parameters; tests/test_ast_nodes.py compares
-    every node class with the one ``_dataclass_node`` makes. On another Python than 3.11,
-    whose dataclasses write other bodies, it is ``_dataclass_node`` itself.
-    """
-    if sys.version_info[:2] != (3, 11):  # what follows is Python 3.11's dataclasses
-        return _dataclass_node(cls)
-    own = cls.__dict__.get("__annotations__", {})  # noqa: RUF063 - as dataclasses reads them
-    fields: dict[str, dataclasses.Field[Any]] = {}
-    for base in cls.__mro__[-1:0:-1]:
-        fields.update(getattr(base, "__dataclass_fields__", {}))
-    for name, type_ in own.items():
-        default = cls.__dict__.get(name, dataclasses.MISSING)
-        f = default if isinstance(default, dataclasses.Field) else field(default=default)
-        f.name, f.type, f._field_type = name, type_, dataclasses._FIELD  # type: ignore[attr-defined]
-        if f.kw_only is dataclasses.MISSING:
-            f.kw_only = True
-        assert type(type_) is str and not type_.startswith(("ClassVar", "InitVar", "KW_ONLY"))
-        assert f.default_factory is dataclasses.MISSING and f.default.__class__.__hash__
-        fields[name] = f
-    every = list(fields.values())
-    namespace: dict[str, Any] = {
-        "cls": cls,
-        "FrozenInstanceError": dataclasses.FrozenInstanceError,
-        "__dataclass_builtins_object__": object,
-        **{f"__dataclass_dflt_{f.name}__": f.default for f in every},
-    }
-    names = "(" + "".join(f"{f.name!r}," for f in every) + ")"
-
-    def each(owner: str, chosen: list[dataclasses.Field[Any]]) -> str:
-        return "(" + "".join(f"{owner}.{f.name}," for f in chosen) + ")"
-
-    compared = [f for f in every if f.compare]
-    hashed = [f for f in every if (f.compare if f.hash is None else f.hash)]
-    params = ", ".join(
-        f.name if f.default is dataclasses.MISSING else f"{f.name}=__dataclass_dflt_{f.name}__"
-        for f in every
-    )
-    shown = ", ".join(f"{f.name}={{self.{f.name}!r}}" for f in every if f.repr)
-    assigns = "".join(
-        f"\n    __dataclass_builtins_object__.__setattr__(self,{f.name!r},{f.name})" for f in every
-    )
-    exec(  # the bodies dataclasses writes for these options (Python 3.11)
-        f"def __init__(self, *, {params}) -> None:{assigns or chr(10) + '    pass'}\n"
-        f"def __repr__(self):\n"
-        f'    return self.__class__.__qualname__ + f"({shown})"\n'
-        f"def __eq__(self, other):\n"
-        f"    if other.__class__ is self.__class__:\n"
-        f"        return {each('self', compared)}=={each('other', compared)}\n"
-        f"    return NotImplemented\n"
-        f"def __setattr__(self, name, value):\n"
-        f"    if type(self) is cls or name in {names}:\n"
-        f'        raise FrozenInstanceError(f"cannot assign to field {{name!r}}")\n'
-        f"    super(cls, self).__setattr__(name, value)\n"
-        f"def __delattr__(self, name):\n"
-        f"    if type(self) is cls or name in {names}:\n"
-        f'        raise FrozenInstanceError(f"cannot delete field {{name!r}}")\n'
-        f"    super(cls, self).__delattr__(name)\n"
-        f"def __hash__(self):\n"
-        f"    return hash({each('self', hashed)})\n",
-        namespace,
-    )
-    body = dict(cls.__dict__)
-    namespace["__init__"].__annotations__ = {f.name: f.type for f in every} | {"return": None}
-    namespace["__repr__"] = dataclasses._recursive_repr(namespace["__repr__"])  # type: ignore[attr-defined]
-    for method in ("__init__", "__repr__", "__eq__", "__setattr__", "__delattr__", "__hash__"):
-        namespace[method].__qualname__ = f"{cls.__qualname__}.{method}"
-        body[method] = namespace[method]
-    signature = ", ".join(
-        f"{f.name}: {f.type!r}" + ("" if f.default is dataclasses.MISSING else f" = {f.default!r}")
-        for f in every
-    )
-    inherited = {slot for base in cls.__mro__[1:-1] for slot in base.__dict__.get("__slots__", ())}
-    body.update(
-        __dataclass_params__=dataclasses._DataclassParams(True, True, True, False, False, True),  # type: ignore[attr-defined]
-        __dataclass_fields__=fields,
-        __doc__=cls.__doc__ or f"{cls.__name__}(*, {signature})",
-        __match_args__=(),
-        __slots__=tuple(f.name for f in every if f.name not in inherited),
-    )
-    for name in (*fields, "__dict__", "__weakref__"):
-        body.pop(name, None)
-    made = type(cls)(cls.__name__, cls.__bases__, body)
-    made.__qualname__ = cls.__qualname__
-    made.__getstate__ = dataclasses._dataclass_getstate  # type: ignore[attr-defined]
-    made.__setstate__ = dataclasses._dataclass_setstate  # type: ignore[attr-defined]
-    return made
 
 
 @_node

@@ -88,6 +88,12 @@ MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its la
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
+# rad: an arm resting on its site (pinned, no segment of its own live) that a correction
+# leaves straighter than this, and straighter than it was, has lost its hand's contact: at
+# full stretch the elbow turns as the square root of the shoulder's distance to the hand, and
+# the trunk's lean peaking there bent it back 13-30 deg in a frame (issue 19)
+STRAIGHT_ELBOW = math.radians(20.0)
+RESTING = 2  # a ``hands`` mask's value for a resting hand (1: pinned, 0: free)
 # the legs' contact solve gives up after 4 iterations without a 10 % gain (the IK default
 # waits 8): a leg that stalls is one at a joint's limit, whose error stays where it started
 # (#4034: 8,700 rows a round, each 9 iterations for nothing); no row of #606, #4034 or the
@@ -381,6 +387,7 @@ def restore_contacts(
             continue
         goal = [Goal(hand, position=target[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
+        planned = q[idx, elbow].copy()
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
         model = prepare(
             skel, goal, q[idx], root_position=root[idx], root_rotation=root_rotation[idx]
@@ -389,7 +396,10 @@ def restore_contacts(
             skel, goal, q[idx], model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40
         )
         q[idx] = res.q
-        worst[idx] = np.maximum(worst[idx], res.position_error)
+        bent = res.q[:, elbow]
+        stretched = (rows[idx] == RESTING) & (bent < STRAIGHT_ELBOW) & (bent < planned - 1e-9)
+        # counted as a metre off (finite: the pelvis's step schedule extrapolates errors)
+        worst[idx] = np.maximum(worst[idx], np.where(stretched, 1.0, res.position_error))
     return q, root, worst
 
 
@@ -520,6 +530,7 @@ class Segments(NamedTuple):
     pins: dict[str, tuple[np.ndarray, np.ndarray]]
     holding: Held
     approaches: dict[str, tuple[np.ndarray, np.ndarray]]
+    busy: dict[str, tuple[np.ndarray, np.ndarray]]
 
 
 def read_segments(ir: MotionIR) -> Segments:
@@ -531,7 +542,21 @@ def read_segments(ir: MotionIR) -> Segments:
         pins,
         held(ir),
         approach_windows(ir, pins),
+        busy_windows(ir),
     )
+
+
+def busy_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of the segments on its arm track (``lo <= t < hi``): a
+    pinned hand outside them rests on its site."""
+    out = {}
+    for hand, track in HANDS.items():
+        segs = sorted((s for s in ir.segments if s.track == track), key=lambda s: s.start)
+        out[hand] = (
+            np.array([s.start - 1e-9 for s in segs], dtype=float),
+            np.array([s.end - 1e-9 for s in segs], dtype=float),
+        )
+    return out
 
 
 class Measured(NamedTuple):
@@ -691,7 +716,10 @@ def balance_frames(
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
     pins = hand_pins(ir, t, segs.pins)
-    hands = {h: (pins[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
+    # 1 where a hand is pinned, RESTING where no segment of its arm is live then
+    busy = hand_pins(ir, t, segs.busy)
+    codes = {h: pins[h] * np.where(busy[h], 1, RESTING).astype(np.int8) for h in HANDS}
+    hands = {h: (codes[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
     rot = frames.root_rotation[rows]
@@ -782,7 +810,7 @@ def balance_frames(
                m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
+    hands_b = {h: (codes[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     hull_b = grouped_hull(pts_s, ok_s)
     # a blended frame must keep its contacts and be at least as balanced as its own correction
@@ -862,7 +890,7 @@ def balance_frames(
     after[raw] = margin[at]
     if raw.size:
         cut, cut_margin = limit_raw(
-            ir, frames, raw, q0[at], root0[at], (apply, applied), measured, pins, segs
+            ir, frames, raw, q0[at], root0[at], (apply, applied), measured, codes, segs
         )
         after[cut] = np.where(np.isnan(cut_margin), before[cut], cut_margin)
         # a frame the cut leaves outside its support is reported where it was outside before

@@ -88,6 +88,12 @@ MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its la
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
+# rad: an arm resting on its site (pinned, no segment of its own live) that a correction
+# leaves straighter than this, and straighter than it was, has lost its hand's contact: at
+# full stretch the elbow turns as the square root of the shoulder's distance to the hand, and
+# the trunk's lean peaking there bent it back 13-30 deg in a frame (issue 19)
+STRAIGHT_ELBOW = math.radians(20.0)
+RESTING = 2  # a ``hands`` mask's value for a resting hand (1: pinned, 0: free)
 # the legs' contact solve gives up after 4 iterations without a 10 % gain (the IK default
 # waits 8): a leg that stalls is one at a joint's limit, whose error stays where it started
 # (#4034: 8,700 rows a round, each 9 iterations for nothing); no row of #606, #4034 or the
@@ -381,6 +387,7 @@ def restore_contacts(
             continue
         goal = [Goal(hand, position=target[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
+        planned = q[idx, elbow].copy()
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
         model = prepare(
             skel, goal, q[idx], root_position=root[idx], root_rotation=root_rotation[idx]
@@ -389,7 +396,10 @@ def restore_contacts(
             skel, goal, q[idx], model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40
         )
         q[idx] = res.q
-        worst[idx] = np.maximum(worst[idx], res.position_error)
+        bent = res.q[:, elbow]
+        stretched = (rows[idx] == RESTING) & (bent < STRAIGHT_ELBOW) & (bent < planned - 1e-9)
+        # counted as a metre off (finite: the pelvis's step schedule extrapolates errors)
+        worst[idx] = np.maximum(worst[idx], np.where(stretched, 1.0, res.position_error))
     return q, root, worst
 
 
@@ -520,6 +530,7 @@ class Segments(NamedTuple):
     pins: dict[str, tuple[np.ndarray, np.ndarray]]
     holding: Held
     approaches: dict[str, tuple[np.ndarray, np.ndarray]]
+    busy: dict[str, tuple[np.ndarray, np.ndarray]]
 
 
 def read_segments(ir: MotionIR) -> Segments:
@@ -531,7 +542,21 @@ def read_segments(ir: MotionIR) -> Segments:
         pins,
         held(ir),
         approach_windows(ir, pins),
+        busy_windows(ir),
     )
+
+
+def busy_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of the segments on its arm track (``lo <= t < hi``): a
+    pinned hand outside them rests on its site."""
+    out = {}
+    for hand, track in HANDS.items():
+        segs = sorted((s for s in ir.segments if s.track == track), key=lambda s: s.start)
+        out[hand] = (
+            np.array([s.start - 1e-9 for s in segs], dtype=float),
+            np.array([s.end - 1e-9 for s in segs], dtype=float),
+        )
+    return out
 
 
 class Measured(NamedTuple):
@@ -691,7 +716,10 @@ def balance_frames(
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
     pins = hand_pins(ir, t, segs.pins)
-    hands = {h: (pins[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
+    # 1 where a hand is pinned, RESTING where no segment of its arm is live then
+    busy = hand_pins(ir, t, segs.busy)
+    codes = {h: pins[h] * np.where(busy[h], 1, RESTING).astype(np.int8) for h in HANDS}
+    hands = {h: (codes[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
     rot = frames.root_rotation[rows]
@@ -782,7 +810,7 @@ def balance_frames(
                m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
+    hands_b = {h: (codes[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     hull_b = grouped_hull(pts_s, ok_s)
     # a blended frame must keep its contacts and be at least as balanced as its own correction
@@ -818,27 +846,59 @@ def balance_frames(
         q2, r2, m2, ok2 = blended(again, share[again])
         took = again[ok2]
         qb[took], rb[took], mb[took], fine[took] = q2[ok2], r2[ok2], m2[ok2], True
+        # a frame that took part of its correction is a dip in the lean its neighbours took
+        # whole: widened into a smooth dip over them, as far as they stay inside the support
+        # (one frame's 11 % less lean bent a pinned arm held straight by 18 deg, issue 19)
+        taken = np.ones(span.size)
+        taken[took] = share[took]
+        wide = widened_dips(taken, BLEND_FRAMES)
+        around = np.flatnonzero(fine & (wide < taken - 1e-9))
+        if around.size:
+            q3, r3, m3, ok3 = blended(around, wide[around])
+            ok3 &= m3 >= ACCEPT_MARGIN
+            took = around[ok3]
+            qb[took], rb[took], mb[took] = q3[ok3], r3[ok3], m3[ok3]
     # ...and where a frame still cannot take any (a pinned hand out of the arm's reach once
     # the pelvis moves), its corrected neighbours fade theirs out toward it, as far as they
-    # stay inside the support (a fade that would tip a frame over keeps the step)
-    share = fade_shares(t[span], ~fine, dq[span], dr[span], into=True)
+    # stay inside the support (a fade that would tip a frame over keeps the step). A frame
+    # that had its own correction takes it (below), so they do not fade toward it: a fade
+    # toward such frames, refused a frame before them, left a one-frame dip of the lean that
+    # swung a pinned arm 38 deg (the fuel filter female P1's left shoulder, issue 19)
+    own_good = np.zeros(len(t), dtype=bool)
+    own_good[rows[good]] = True
+    bare = ~fine & ~own_good[span]
+    share = fade_shares(t[span], bare, dq[span], dr[span], into=True)
     again = np.flatnonzero(fine & (share < 1.0))
-    if again.size and not fine.all():
+    if again.size and bare.any():
         q2, r2, m2, ok2 = blended(again, share[again])
         ok2 &= m2 >= ACCEPT_MARGIN
         took = again[ok2]
         qb[took], rb[took], mb[took] = q2[ok2], r2[ok2], m2[ok2]
     apply = span[fine]
+    applied = np.concatenate(
+        [qb[fine] - frames.q[apply], rb[fine] - frames.root_position[apply]], axis=1
+    )
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
-    # elsewhere a frame keeps its own correction, if it had one
+    # elsewhere a frame keeps its own correction, if it had one, as far as it differs from
+    # its neighbours' no faster than a person moves (``raw_shares``): kept whole, one frame's
+    # own pelvis shift and arms re-solved next to frames without it made the stand's elbows
+    # step 26 deg out and back (issue 19)
     raw = np.setdiff1d(rows[good], apply)
     at = np.searchsorted(rows, raw)
     frames.q[raw], frames.root_position[raw] = q[at], root[at]
     after[raw] = margin[at]
+    if raw.size:
+        cut, cut_margin = limit_raw(
+            ir, frames, raw, q0[at], root0[at], (apply, applied), measured, codes, segs
+        )
+        after[cut] = np.where(np.isnan(cut_margin), before[cut], cut_margin)
+        # a frame the cut leaves outside its support is reported where it was outside before
+        failed[cut] |= ~(after[cut] >= ACCEPT_MARGIN) & (before[cut] < 0.0)
     # the arms re-solved frame by frame for their pinned hands, made continuous in time: the
     # correction at a contact's start turned in over its approach, then no joint faster than
     # a person's
+    pinned_arms_on_branch(skel, frames, q_start, pins, measured.hands)
     held_still = pins
     if approaching:
         approach_arms(skel, frames, q_start, root_start, segs.approaches)
@@ -847,6 +907,158 @@ def balance_frames(
     frames.q[:] = arms_in_time(skel, q_start, frames.q, t, held_still)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
+
+
+def pinned_arms_on_branch(
+    skel: Skeleton,
+    frames: Frames,
+    q_start: FloatArray,
+    pins: dict[str, np.ndarray],
+    hands_at: FloatArray,
+) -> None:
+    """Each pinned arm kept on the branch of its previous frame, in place: where its
+    correction (what balancing changed of ``q_start`` on the arm's dofs) changes between two
+    pinned frames faster than ``CORRECTED_JOINT_SPEED``, the later frame's arm is solved again
+    for its hand's place (``hands_at`` (N, 2, 3), r_hand and l_hand) from the previous frame's
+    correction, and keeps that solve if it holds the hand within ``POSITION_TOL`` with a
+    smaller step; then the next frame is compared with it, and so on.
+
+    Each frame's pinned arm is solved by itself from its own start: near a straight elbow or
+    where the trunk's blended lean dips for one frame, neighbouring frames landed on different
+    solutions (the fuel filter's left hand on the bowl: 38.5 deg of shoulder flexion and 20 deg
+    of elbow in one frame, issue 19), which ``arms_in_time`` cannot even out: a pinned frame
+    keeps its own."""
+    t = frames.time
+    if len(t) < 2:
+        return
+    limit = CORRECTED_JOINT_SPEED * np.diff(t) + 1e-9
+    for k, hand in enumerate(HANDS):
+        pinned = pins[hand]
+        cols = np.asarray(arm_dofs(skel, hand), dtype=np.intp)
+        corr = frames.q[:, cols] - q_start[:, cols]
+        jumps = np.abs(np.diff(corr, axis=0)).max(axis=1) > limit
+        jumps &= pinned[1:] & pinned[:-1]
+        if not jumps.any():
+            continue
+        i = int(np.flatnonzero(jumps)[0]) + 1
+        while i < len(t):
+            if not (pinned[i] and pinned[i - 1]):
+                later = np.flatnonzero(jumps[i:])  # the next jump of the frames' own
+                if later.size == 0:
+                    break
+                i += int(later[0]) + 1
+                continue
+            step = np.abs(corr[i] - corr[i - 1]).max()
+            if step > limit[i - 1]:
+                seed = frames.q[i].copy()
+                seed[cols] = np.clip(q_start[i, cols] + corr[i - 1], skel.lower[cols],
+                                     skel.upper[cols])  # fmt: skip
+                goal = [Goal(hand, position=hands_at[i : i + 1, k])]
+                root, rot = frames.root_position[i : i + 1], frames.root_rotation[i : i + 1]
+                model = prepare(skel, goal, seed[None], root_position=root, root_rotation=rot)
+                res = solve_ta(skel, goal, seed[None], model=model, restarts=0, null_gain=0.0,
+                               tol=2e-4, max_iter=40)  # fmt: skip
+                new = res.q[0, cols] - q_start[i, cols]
+                if (
+                    res.position_error[0] <= POSITION_TOL
+                    and np.abs(new - corr[i - 1]).max() < step
+                    and skel.within_limits(res.q, tol=1e-6)[0]
+                ):
+                    frames.q[i, cols] = res.q[0, cols]
+                    corr[i] = new
+            i += 1
+
+
+def raw_shares(
+    t: FloatArray, raw: np.ndarray, own: FloatArray, fixed: np.ndarray, given: FloatArray, d: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The corrections ``own`` (R, D + 3: joints, then pelvis) of the frames ``raw`` (indices,
+    ascending), each frame's own, brought toward its neighbours': (base, excess, share) per
+    raw frame, to apply as ``base + share * excess``. ``fixed`` (indices, ascending) are the
+    frames whose correction is ``given`` (F, D + 3); any other frame has none. ``base`` is
+    the correction interpolated in time between the nearest non-raw frames (a run with none
+    on one side takes the other's), ``excess`` what the raw frame has beyond it, and
+    ``share`` the part of the excess it reaches from the nearest of them at
+    ``CORRECTED_JOINT_SPEED`` and ``CORRECTED_ROOT_SPEED`` (1 with no other frame)."""
+    n = len(t)
+    is_raw = np.zeros(n, dtype=bool)
+    is_raw[raw] = True
+    other = np.flatnonzero(~is_raw)
+    if other.size == 0:
+        return own, np.zeros_like(own), np.ones(raw.size)
+    k = np.searchsorted(other, raw)
+    before = other[np.clip(k - 1, 0, other.size - 1)]
+    after = other[np.clip(k, 0, other.size - 1)]
+
+    def correction(idx: np.ndarray) -> FloatArray:
+        """The correction of the non-raw frames ``idx``: ``given`` or none."""
+        out = np.zeros((idx.size, own.shape[1]))
+        if fixed.size:
+            j = np.clip(np.searchsorted(fixed, idx), 0, fixed.size - 1)
+            hit = fixed[j] == idx
+            out[hit] = given[j[hit]]
+        return out
+
+    c0, c1 = correction(before), correction(after)
+    span = t[after] - t[before]
+    w = np.where(span > 0, (t[raw] - t[before]) / np.where(span > 0, span, 1.0), 0.0)
+    base = (1.0 - w)[:, None] * c0 + w[:, None] * c1
+    excess = own - base
+    takes = np.maximum(
+        np.abs(excess[:, :d]).max(axis=1) / CORRECTED_JOINT_SPEED,
+        np.linalg.norm(excess[:, d:], axis=1) / CORRECTED_ROOT_SPEED,
+    )  # s the excess takes at a person's speed
+    gap = np.minimum(np.abs(t[raw] - t[before]), np.abs(t[after] - t[raw]))
+    return base, excess, np.clip(gap / np.maximum(takes, 1e-9), 0.0, 1.0)
+
+
+def limit_raw(
+    ir: MotionIR,
+    frames: Frames,
+    raw: np.ndarray,
+    q_raw: FloatArray,
+    root_raw: FloatArray,
+    applied: tuple[np.ndarray, FloatArray],
+    measured: Measured,
+    pins: dict[str, np.ndarray],
+    segs: Segments,
+) -> tuple[np.ndarray, FloatArray]:
+    """The frames ``raw`` (indices, ascending), which took their own correction (``frames``
+    holds it; ``q_raw`` and ``root_raw`` are them before it) where a blended one lost their
+    contacts, made continuous with their neighbours, in place: a raw frame's excess over the
+    correction interpolated between its neighbours (``applied``: the frames that took a
+    blended one and its joints and pelvis columns) is cut to what a person's joints and
+    pelvis cover in the time to the nearest of them (``raw_shares``), its contacts restored.
+    A frame that loses its contacts so stays as it was. Returns the frames changed and their
+    margins (NaN: the frame stays as it was)."""
+    skel, t, d = ir.skeleton, frames.time, ir.skeleton.n_dofs
+    own = np.concatenate([frames.q[raw] - q_raw, frames.root_position[raw] - root_raw], axis=1)
+    base, excess, share = raw_shares(t, raw, own, applied[0], applied[1], d)
+    cut = np.flatnonzero(share < 1.0)
+    if cut.size == 0:
+        return raw[cut], np.empty(0)
+    f = raw[cut]
+    step = base[cut] + share[cut, None] * excess[cut]
+    qs = np.clip(q_raw[cut] + step[:, :d], skel.lower, skel.upper)
+    rs = root_raw[cut] + step[:, d:]
+    m = measured.take(f)
+    feet = {
+        name: (m.feet[:, k], m.feet_rotation[:, k],
+               m.contact.reshape(f.size, 2, -1).any(axis=2)[:, k])
+        for k, name in enumerate(FEET_SITES)
+    }  # fmt: skip
+    hands = {h: (pins[h][f], m.hands[:, k]) for k, h in enumerate(HANDS)}
+    qs, rs, ws, ps = restore_contacts_posed(
+        ir, qs, rs, frames.root_rotation[f], feet, hands, with_axes=False
+    )
+    ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
+    ok &= lowest_point(skel, ps) >= np.minimum(m.lowest - 1e-4, ir.ground - GROUND_SLACK)
+    margin = hull_margin(
+        grouped_hull(m.pts, m.ok), carried_com(ir, ps, t[f], segs.holding)[:, [0, 2]]
+    )
+    frames.q[f] = np.where(ok[:, None], qs, q_raw[cut])
+    frames.root_position[f] = np.where(ok[:, None], rs, root_raw[cut])
+    return f, np.where(ok, margin, np.nan)
 
 
 class StepSchedule:
@@ -990,6 +1202,17 @@ def fade_shares(
         share = np.maximum(share, 1.0 - gap / np.maximum(size[near], 1e-9))
     share[kept] = 1.0
     return np.clip(share, 0.0, 1.0)
+
+
+def widened_dips(share: FloatArray, half: int) -> FloatArray:
+    """``share`` (N,) with each dip under 1 widened into its neighbours: the smallest share
+    within ``half`` frames, averaged over 2·half + 1 frames (never more than the share
+    itself; 1 where no dip is within 2·half frames)."""
+    pad = np.concatenate([np.ones(half), share, np.ones(half)])
+    low = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1).min(axis=1)
+    pad = np.concatenate([np.ones(half), low, np.ones(half)])
+    mean = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1).mean(axis=1)
+    return np.minimum(share, mean)
 
 
 def eased_off(delta: FloatArray, zero: BoolArray, t: FloatArray, speed: float) -> FloatArray:

@@ -49,7 +49,16 @@ from mtlc.body.kinematics import Pose
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.geometry.clearance import held_capsules, scene_pieces
 from mtlc.geometry.distance import MeshIndex
-from mtlc.geometry.held import SIDES, HeldPart, Hold, _grasps, _node_at, part_at_node
+from mtlc.geometry.held import (
+    SIDES,
+    HeldPart,
+    Hold,
+    _grasps,
+    _node_at,
+    _placements,
+    part_at_node,
+)
+from mtlc.geometry.held import _hand_frames as hand_frames
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.approach import groups
 from mtlc.passes.context import PassContext
@@ -57,6 +66,7 @@ from mtlc.passes.interpolate import track
 from mtlc.passes.profile import minimum_jerk, smooth_path
 from mtlc.passes.state import PoseState
 
+PART_FPS = 30.0  # a grasped part's placement is followed on this clock (frames a second)
 SAMPLES = 25  # poses of a reach's path measured against the models, ends included
 # of the reach's samples: ``pace`` smooths a movement's path by up to a Gaussian of 0.25 of
 # its progress (``pace.SMOOTH_SIGMAS``), the approach and the contact together; the approach
@@ -86,22 +96,41 @@ EPS = 1e-9
 @dataclass
 class Obstacles:
     """The models a reach must stay out of: each model without the parts hands grasp, and each
-    grasped part until its first grasp (after that it moves with the hand)."""
+    grasped part where it is while no hand holds it (where the model has it until its first
+    grasp, where a hand set it down after; ``PlacedPart``)."""
 
     fixed: list[MeshIndex]
-    parts: list[tuple[MeshIndex, float]]  # (index, first grasp's start)
+    parts: list[PlacedPart]
 
     def depth(self, a: FloatArray, b: FloatArray, radii: FloatArray, t: FloatArray) -> FloatArray:
         """(K,) the deepest capsule (axes ``a``-``b`` (K, C, 3), radii (C,)) of each pose at
         times ``t`` (K,) into any model (m, positive inside)."""
         out = np.full(a.shape[:2], -np.inf)
-        live = [(index, np.ones(len(t), dtype=bool)) for index in self.fixed]
-        live += [(index, t < start - EPS) for index, start in self.parts]
-        for index, rows in live:
-            if rows.any():
-                d = _depth(index, a[rows], b[rows], radii)
-                out[rows] = np.maximum(out[rows], d)
+        for index in self.fixed:
+            out = np.maximum(out, _depth(index, a, b, radii))
+        for part in self.parts:
+            k = np.clip(np.searchsorted(part.times, t + EPS) - 1, 0, len(part.times) - 1)
+            rows = np.flatnonzero(~part.held[k])
+            if not rows.size:
+                continue
+            place = part.placement[k[rows]]
+            rot, move = place[:, :3, :3], place[:, None, :3, 3]
+            la = np.einsum("nji,ncj->nci", rot, a[rows] - move)
+            lb = np.einsum("nji,ncj->nci", rot, b[rows] - move)
+            out[rows] = np.maximum(out[rows], _depth(part.index, la, lb, radii))
         return out.max(axis=1)
+
+
+@dataclass
+class PlacedPart:
+    """A grasped part's mesh (in its model's frame) and where it is over the motion, on a
+    coarse clock (``PART_FPS``) from the keyframes: its placement and whether a hand holds it
+    then (held, it moves with the hand and is not in the reach's way)."""
+
+    index: MeshIndex
+    times: FloatArray  # (G,)
+    placement: FloatArray  # (G, 4, 4)
+    held: np.ndarray  # (G,) bool
 
 
 def _depth(index: MeshIndex, a: FloatArray, b: FloatArray, radii: FloatArray) -> FloatArray:
@@ -134,17 +163,31 @@ def grasped_parts(ir: MotionIR, models: list) -> list[HeldPart]:
     return [found[k] for k in sorted(found, key=lambda k: (k[0], k[1] or ""))]
 
 
-def obstacles_of(ir: MotionIR) -> Obstacles | None:
-    """The scene's models as ``Obstacles``; None without models."""
+def obstacles_of(ir: MotionIR, state: PoseState) -> Obstacles | None:
+    """The scene's models as ``Obstacles``; None without models. A grasped part's placement
+    follows ``geometry.held``'s rule on the body as keyed so far (each dof at its last key:
+    where a hand grasps and where it lets go are keys)."""
     models = [m for m in ir.geometry if len(m.faces)]
     if not models:
         return None
     parts = grasped_parts(ir, models)
     fixed, _, pieces = scene_pieces(models, parts)
-    return Obstacles(
-        list(fixed.values()),
-        [(index, min(h.start for h in part.holds)) for part, index in pieces],
-    )
+    placed = []
+    if pieces:
+        end = max(s.end for s in ir.segments)
+        bounds = [t for part, _ in pieces for h in part.holds for t in (h.start, h.end)]
+        times = np.unique(np.concatenate([np.arange(0.0, end, 1.0 / PART_FPS), bounds]))
+        q = state.q_at_many(times)
+        root = state.root_at_many(times)
+        pose = forward(ir.skeleton, q, *root, with_axes=False)
+        hands = {side: hand_frames(ir, pose, side) for side in SIDES}
+        for part, index in pieces:
+            placement, kept = _placements(times, hands, part.holds)
+            held = np.zeros(len(times), dtype=bool)
+            for h in kept:
+                held |= (times >= h.start - EPS) & (times <= h.end + EPS)
+            placed.append(PlacedPart(index, times, placement, held))
+    return Obstacles(list(fixed.values()), placed)
 
 
 class ArmCapsules:
@@ -440,10 +483,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     del ctx
     if not ir.geometry or ir.skeleton is None:
         return ir
-    obstacles = obstacles_of(ir)
+    state = PoseState(ir)
+    obstacles = obstacles_of(ir, state)
     if obstacles is None:
         return ir
-    state = PoseState(ir)
     for segs in groups(ir, "TA"):
         reach = reach_of(ir, state, segs)
         if reach is not None:

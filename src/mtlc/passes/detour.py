@@ -64,7 +64,7 @@ from mtlc.passes.approach import groups
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import track
 from mtlc.passes.profile import minimum_jerk, smooth_path
-from mtlc.passes.state import PoseState
+from mtlc.passes.state import TRUNK_DOFS, PoseState
 
 PART_FPS = 30.0  # a grasped part's placement is followed on this clock (frames a second)
 SAMPLES = 25  # poses of a reach's path measured against the models, ends included
@@ -90,6 +90,8 @@ TWIST_AND_WRIST = ("_pro", "_wrist_flex", "_wrist_dev")  # dofs the via solve le
 ELBOW_SITE = "{side}_elbow_point"  # a site at the elbow joint, for the via solve
 HOMOTOPY = 3  # steps the via solve takes the offset in
 WORDS = {"r": "right", "l": "left"}
+ARM_TRACKS = ("r_arm", "l_arm")
+TRUNK_TURN = 0.02  # rad a reach's keys must turn a trunk dof by to carry a free arm
 EPS = 1e-9
 
 
@@ -353,20 +355,25 @@ def bump(share: FloatArray, peak: float) -> FloatArray:
     return np.where(share <= peak, minimum_jerk(up), minimum_jerk(down))
 
 
+def key_rows(reach: Reach, seg: Segment, peak: int) -> np.ndarray:
+    """The samples a detour peaking at sample ``peak`` keys ``seg`` at: the nearest to its
+    own keys, the peak, and ``BUMP_KEYS`` shares of the way to the peak and from it."""
+    n = len(reach.times) - 1
+    own = (np.asarray(seg.keyframes.time, dtype=float) - reach.t0) / (reach.t1 - reach.t0)
+    at = peak / n
+    wanted = np.concatenate([own, BUMP_KEYS * at, at + BUMP_KEYS * (1.0 - at), [at, 0.0, 1.0]])
+    return np.unique(np.clip(np.rint(wanted * n), 0, n).astype(int))
+
+
 def bumped_keys(reach: Reach, peak: int, offset: FloatArray) -> list[Keyframes]:
     """The reach's keys with its path bowed by ``offset`` (3,) times ``bump`` peaking at
     sample ``peak``: keys at the samples nearest the reach's own keys and at ``BUMP_KEYS``
     shares of the way to the peak and from it, each the path's pose there with the arms
     solved to move by its share of the offset (``solve_via``)."""
-    skel, n = reach.skel, len(reach.times) - 1
+    skel = reach.skel
     share = (reach.times - reach.t0) / (reach.t1 - reach.t0)
-    own = np.concatenate([np.asarray(s.keyframes.time, dtype=float) for s in reach.segs])
-    at = peak / n
-    wanted = np.concatenate(
-        [(own - reach.t0) / (reach.t1 - reach.t0), BUMP_KEYS * at,
-         at + BUMP_KEYS * (1.0 - at), [at, 0.0, 1.0]]
-    )  # fmt: skip
-    rows = np.unique(np.clip(np.rint(wanted * n), 0, n).astype(int))
+    rows = np.unique(np.concatenate([key_rows(reach, s, peak) for s in reach.segs]))
+    at = peak / (len(reach.times) - 1)
     q = reach.path([s.keyframes for s in reach.segs], smooth=False)[rows]
     lift = bump(share[rows], at)
     moved = np.flatnonzero(lift > 1e-6)
@@ -408,11 +415,114 @@ def end_allowance(depth: FloatArray, share: FloatArray) -> FloatArray:
 
 def plan(ir: MotionIR, reach: Reach, obstacles: Obstacles) -> None:
     """Add via keys to the reach while its path goes into a model and one more takes it
-    less deep (``VIA_KEYS`` at most; the module docstring)."""
+    less deep (``VIA_KEYS`` at most; the module docstring); then keep a free arm the reach's
+    trunk carries out of the models (``free_arm_out``)."""
     arms = ArmCapsules(ir, reach.sides, reach.t0, reach.t1)
     for _ in range(VIA_KEYS):
         if not add_via(ir, reach, obstacles, arms):
             break
+    for side in SIDES:
+        if side not in reach.sides:
+            free_arm_out(ir, reach, obstacles, side)
+
+
+def trunk_carrier(reach: Reach) -> Segment | None:
+    """The reach's segment whose keys turn the trunk (lumbar, thorax), if one does."""
+    for seg in reach.segs:
+        kf = seg.keyframes
+        cols = [k for k, name in enumerate(kf.dofs) if name in TRUNK_DOFS]
+        if cols and float(np.ptp(np.asarray(kf.q)[:, cols], axis=0).max()) > TRUNK_TURN:
+            return seg
+    return None
+
+
+def is_free(ir: MotionIR, side: str, t0: float, t1: float) -> bool:
+    """Whether the ``side`` arm has nothing to do over ``t0``-``t1``: no segment of its own
+    (a reach, a contact, a hold, a wrench stroke) and its hand holds nothing."""
+    for name in (f"{side}_arm", f"{side}_hand"):
+        if any(s.start < t1 - EPS and s.end > t0 + EPS for s in ir.on_track(name)):
+            return False
+    return not any(g.start < t1 - EPS and end > t0 + EPS for g, _, end in _grasps(ir, side))
+
+
+def free_arm_out(ir: MotionIR, reach: Reach, obstacles: Obstacles, side: str) -> None:
+    """A free arm (``is_free``) that the reach's trunk turn carries through a model on the
+    way (out of it at the reach's start and end): its shoulder and elbow keyed with the reach
+    so that its hand and elbow bow away by one minimum-jerk bell (``bump``), the direction
+    and peak whose least rigid moves need the least height, as a reach's own detour."""
+    skel = ir.skeleton
+    carrier = trunk_carrier(reach)
+    if carrier is None or not is_free(ir, side, reach.t0, reach.t1):
+        return
+    arm = ArmCapsules(ir, [side], reach.t0, reach.t1)
+    q = reach.path([s.keyframes for s in reach.segs])
+    pose = forward(skel, q, *reach.root, with_axes=False)
+    depth = arm.depth(obstacles, pose, reach.times)
+    before = float(depth.max())
+    if before <= 0.0 or depth[0] > -MARGIN or depth[-1] > -MARGIN:
+        return  # clear, or in at an end: where it is, not the way, holds it there
+    share = (reach.times - reach.t0) / (reach.t1 - reach.t0)
+    inside = np.flatnonzero(depth > -MARGIN)
+    inner = np.flatnonzero((share >= VIA_OFF_END - EPS) & (share <= 1.0 - VIA_OFF_END + EPS))
+    at = forward(skel, q[inside], reach.root[0][inside], reach.root[1][inside], with_axes=False)
+    shoulder = at.p[:, skel.joint_index(f"{side}_shoulder")].mean(axis=0)
+    hand = site_positions(skel, at, f"{side}_hand").mean(axis=0)
+    ranked = []
+    for i, direction in enumerate(directions([], shoulder, hand)):
+        moves = least_moves(arm, obstacles, at, reach.times[inside], direction)
+        if np.isfinite(moves).all():
+            peak, height = best_peak(moves, share, inside, inner)
+            ranked.append((height, i, direction, peak))
+    ranked.sort(key=lambda r: r[:2])
+    names = [skel.dof_names[d] for d in carrying_dofs(skel, side)]
+    idx = [skel.dof_index(n) for n in names]
+    raw = reach.path([s.keyframes for s in reach.segs], smooth=False)
+    was_body = body_depth(skel, pose, [side])
+    best: tuple[float, Keyframes] | None = None
+    for height, _, direction, peak in ranked[:TRIED]:
+        rows = key_rows(reach, carrier, peak)
+        lift = bump(share[rows], float(share[peak]))
+        root = (reach.root[0][rows], reach.root[1][rows])
+        moved = np.flatnonzero(lift > 1e-6)
+        for scale in SCALES:
+            offset = scale * height * lift[moved, None] * direction[None, :]
+            solved = raw[rows].copy()
+            solved[moved] = solve_via(skel, raw[rows][moved], (root[0][moved], root[1][moved]),
+                                      [side], offset)  # fmt: skip
+            trial = with_dofs(carrier.keyframes, reach.times[rows], raw[rows], solved, names,
+                              idx, skel)  # fmt: skip
+            keys = [trial if s is carrier else s.keyframes for s in reach.segs]
+            pose_new = forward(skel, reach.path(keys), *reach.root, with_axes=False)
+            if body_depth(skel, pose_new, [side]) > max(was_body, 0.0) + BODY_SLACK:
+                continue
+            after = float(arm.depth(obstacles, pose_new, reach.times).max())
+            if best is None or after < best[0]:
+                best = (after, trial)
+            if after <= -MARGIN:
+                break
+        if best is not None and best[0] <= -MARGIN:
+            break
+    if best is not None and best[0] <= before - GAIN:
+        carrier.keyframes = best[1]
+
+
+def with_dofs(
+    kf: Keyframes,
+    times: FloatArray,
+    raw: FloatArray,
+    solved: FloatArray,
+    names: list[str],
+    idx: list[int],
+    skel: Skeleton,
+) -> Keyframes:
+    """The carrier's keys at ``times`` (its own dofs from the path ``raw``) with the free
+    arm's dofs ``names`` (columns ``idx``) from ``solved``, added or replaced."""
+    dofs = list(kf.dofs) + [n for n in names if n not in kf.dofs]
+    cols = [skel.dof_index(n) for n in dofs]
+    q = raw[:, cols].copy()
+    for n, d in zip(names, idx, strict=True):
+        q[:, dofs.index(n)] = solved[:, d]
+    return Keyframes(time=times, dofs=tuple(dofs) if isinstance(kf.dofs, tuple) else dofs, q=q)
 
 
 def add_via(ir: MotionIR, reach: Reach, obstacles: Obstacles, arms: ArmCapsules) -> bool:

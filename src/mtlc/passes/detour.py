@@ -60,9 +60,11 @@ from mtlc.geometry.held import (
 )
 from mtlc.geometry.held import _hand_frames as hand_frames
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
+from mtlc.ir.pchip import pchip
 from mtlc.passes.approach import groups
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import track
+from mtlc.passes.pace import JOINT_WEIGHT
 from mtlc.passes.profile import minimum_jerk, smooth_path
 from mtlc.passes.state import TRUNK_DOFS, PoseState
 
@@ -82,9 +84,20 @@ BUMP_KEYS = np.array([1.0 / 3.0, 2.0 / 3.0])
 TRIED = 3  # directions tried, the least height first
 SCALES = (1.0, 1.5, 2.0)  # the via key's offset as multiples of the rigid move, least first
 MAX_LONGER = 2.0  # a via key may make the hand's path at most this many times as long
+# m: a reach whose start or end pose is deeper than this in a model keeps its way (the hand
+# at a site, its fingers through the surface it works on: verify's finding stays whatever
+# the way between, and bowing it cost the CAD examples' reaches their smoothness: LDLJ
+# under -8 10 -> 42 of 2 226 with every such reach bowed)
+END_INSIDE = 0.005
 END_SHARE = 0.25  # of the reach's window: an end pose's depth is excused fading over it
 VIA_OFF_END = 0.1  # of the reach's window: a via key is kept this far off its ends
 HORIZON = 0.1  # m: a capsule this far from a model's box is not asked
+LDLJ_POINTS = 31  # the paced path's samples for ``paced_ldlj``: the bench's 30 a second over a
+# reach's second (finer, the 25-sample path's PCHIP knots read as jerk: a straight reach -8.5)
+# a detour may make the hand's paced path less smooth (LDLJ) down to the bench's floor for
+# every reach (bench/motion.py: >= -8), or by this much where it was below it already
+LDLJ_FLOOR = -8.0
+LDLJ_LOSS = 0.5
 BODY_SLACK = 1e-3  # m a via key may take a forearm or hand deeper into the trunk or thighs
 TWIST_AND_WRIST = ("_pro", "_wrist_flex", "_wrist_dev")  # dofs the via solve leaves alone
 ELBOW_SITE = "{side}_elbow_point"  # a site at the elbow joint, for the via solve
@@ -397,6 +410,33 @@ def hand_length(skel: Skeleton, pose: Pose, sides: list[str]) -> float:
     return max(lengths)
 
 
+def paced_ldlj(skel: Skeleton, q: FloatArray, pose: Pose, sides: list[str]) -> float:
+    """The hands' log dimensionless jerk (docs/metrics.md's reach figure) along the sampled
+    path ``q`` (K, D) with ``pose`` when ``pace`` times it: progress (the hands' arc length
+    plus ``pace.JOINT_WEIGHT`` times the joints' path) along one minimum-jerk bell. The
+    worse hand's; a detour must not turn a smooth reach into a rough one."""
+    step = np.linalg.norm(np.diff(q, axis=0), axis=1) * JOINT_WEIGHT
+    hands = [site_positions(skel, pose, f"{s}_hand") for s in sides]
+    for p in hands:
+        step = step + np.linalg.norm(np.diff(p, axis=0), axis=1)
+    u = np.concatenate([[0.0], np.cumsum(step)])
+    if u[-1] <= 1e-9:
+        return 0.0
+    u = u / u[-1] + np.arange(len(u)) * 1e-9
+    tau = np.linspace(0.0, 1.0, LDLJ_POINTS)
+    dt = tau[1] - tau[0]
+    worst = np.inf
+    for p in hands:
+        path = pchip(u, p)(minimum_jerk(tau))
+        speed = np.linalg.norm(np.diff(path, axis=0), axis=1) / dt
+        top = float(speed.max())
+        if top <= 1e-9:
+            continue
+        jerk = float(np.sum(np.diff(path, n=3, axis=0) ** 2) / dt**5)
+        worst = min(worst, -float(np.log(max(jerk / top**2, 1e-300))))
+    return float(worst) if np.isfinite(worst) else 0.0
+
+
 def body_depth(skel: Skeleton, pose: Pose, sides: list[str]) -> float:
     """How deep the arms' forearms and hands go into the trunk and thighs along the path."""
     return float(self_intersection(skel, pose, limbs_of_sides(sides))[0].max())
@@ -534,6 +574,8 @@ def add_via(ir: MotionIR, reach: Reach, obstacles: Obstacles, arms: ArmCapsules)
     pose = forward(skel, q, *reach.root, with_axes=False)
     share = (reach.times - reach.t0) / (reach.t1 - reach.t0)
     raw = arms.depth(obstacles, pose, reach.times)
+    if max(raw[0], raw[-1]) > END_INSIDE:
+        return False  # in at an end: the pose there, not the way, holds the finding
     allowed = end_allowance(raw, share)
     depth = raw - allowed
     before = float(depth.max())
@@ -564,6 +606,7 @@ def add_via(ir: MotionIR, reach: Reach, obstacles: Obstacles, arms: ArmCapsules)
     ranked.sort(key=lambda r: r[:2])
     was_length = hand_length(skel, pose, reach.sides)
     was_body = body_depth(skel, pose, reach.sides)
+    was_ldlj = paced_ldlj(skel, q, pose, reach.sides)
     best: tuple[float, list[Keyframes]] | None = None
     for height, _, direction, peak in ranked[:TRIED]:
         for scale in SCALES:
@@ -574,6 +617,10 @@ def add_via(ir: MotionIR, reach: Reach, obstacles: Obstacles, arms: ArmCapsules)
                 break  # a larger move is longer still
             if body_depth(skel, pose_new, reach.sides) > max(was_body, 0.0) + BODY_SLACK:
                 continue
+            if paced_ldlj(skel, q_new, pose_new, reach.sides) < min(
+                was_ldlj - LDLJ_LOSS, LDLJ_FLOOR
+            ):
+                break  # a larger detour is rougher still
             after = float((arms.depth(obstacles, pose_new, reach.times) - allowed).max())
             if best is None or after < best[0]:
                 best = (after, trial)

@@ -8,26 +8,34 @@ i-path20 branch) had to squeeze the detour into the reach's own time: the hand's
 second peak and the reach's LDLJ fell.
 
 Here the way is chosen while it is still a path of keys, before ``pace`` times it. For each
-arm's reach (a group of TA segments, ``approach.groups``), the path the keys make (PCHIP, as
-``interpolate``) is sampled at ``SAMPLES`` poses and its hand, forearm and held tool measured
-against the models (``Obstacles``: each capsule's radius less its axis's distance, and where
-the axis crosses a surface how far its nearer end sticks out beyond, as verify measures).
-Where it goes in, one **via key** is added at the deepest sample:
+arm's reach (a group of TA segments, ``approach.groups``, sharing one window), the path the
+keys make (PCHIP, as ``interpolate``) is sampled at ``SAMPLES`` poses, smoothed as ``pace``
+will smooth it (``PACE_SIGMA``), and its hand, forearm and held tool measured against the
+models (``Obstacles``: each capsule's radius less its axis's distance, and where the axis
+crosses a surface how far its nearer end sticks out beyond, as verify measures; a grasped
+part where it lies while no hand holds it, ``PlacedPart``). A reach that starts or ends in a
+model (``END_INSIDE``) is left: the pose at the site holds that finding. Elsewhere:
 
-* **Where to.** The direction, of the six axes, the goal site's normal and back toward the
-  shoulder, whose least rigid move of the arm's capsules (``MOVES``) takes the deepest pose
-  ``MARGIN`` out; the pose there is solved so the hand and the elbow move by that offset
-  (shoulder and elbow flexion; the forearm's twist and the wrist as the path has them).
-* **Kept when.** The path through the via key (PCHIP through it: one smooth bump, the ends
-  where they were) is less deep by ``GAIN``, no arm goes deeper into the trunk or thighs, and
-  no keyed dof's path gets longer than ``MAX_LONGER`` times (a loop round a model is a
-  worse reach than the brush). ``SCALES`` of the move are tried, least first, until one
-  clears.
+* **The bow.** For each direction (the six axes, the goal sites' normals, back toward the
+  shoulder), the least rigid move of the arm's capsules (``MOVES``) that takes each inside
+  sample ``MARGIN`` out, and the peak and height of one minimum-jerk bell of offset
+  (``bump``) that gives every inside sample its move with the least height (``best_peak``).
+  The path's poses at the reach's keys, the peak and ``BUMP_KEYS`` of the way to and from it
+  are solved so the hand and the elbow move by the bell's offset there (shoulder and elbow
+  flexion; the forearm's twist and the wrist as the path has them) and become its keys.
+* **Kept when.** ``SCALES`` of the height, for the ``TRIED`` least directions, until the
+  smoothed path is ``MARGIN`` clear; the least deep kept if ``GAIN`` less deep, no arm goes
+  deeper into the trunk or thighs, the hand's path is at most ``MAX_LONGER`` times as long,
+  and the hand's paced path keeps its smoothness (``paced_ldlj``: ``LDLJ_FLOOR``,
+  ``LDLJ_LOSS``). Up to ``VIA_KEYS`` bows, each where the last left the path in.
+* **A free arm** that the reach's trunk turn carries through a model on the way (clear at
+  the reach's start and end) bows away by the same kind of bell, keyed with the reach's
+  trunk carrier (``free_arm_out``).
 
 ``pace`` then times the longer path as one minimum-jerk bell: the detour is part of the path,
-not a second movement on top of it. Not done: the contact (TO) phase, the frames at a site, a
-free arm's rest between reaches (the clearance pass knows the body, not the models), a held
-part as an obstacle after it is first grasped (it moves with the hand).
+not a second movement on top of it. Not done: a reach that starts or ends in a model, the
+contact (TO) phase, a free arm in a model at a reach's start or end (the clearance pass knows
+the body, not the models), a held part as an obstacle while it is held.
 """
 
 from __future__ import annotations

@@ -18,6 +18,7 @@ from mtlc.passes import (
     carry_pose,
     clearance,
     contact,
+    detour,
     footing,
     gaze,
     hold,
@@ -51,6 +52,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
+    ("detour", detour.run),  # a reach's path bent around the scene's models by a via key
     ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)
     ("joint_speed", joint_speed.run),  # the clock stretched where a joint would outrun a person
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction

@@ -164,7 +164,7 @@ def stretch(
     time = dense.time
     dt = np.diff(time)
     ratio = ratio.copy()
-    jump = ratio > JUMP
+    jump = (ratio > JUMP) & ~in_movements(ir, time)  # a tool's bell is a movement, not a jump
     need = PEAK * ratio * dt  # a jump's time at the limit
     cuts: dict[float, tuple[float, int]] = {}  # cut -> (pause, the dense frame before it)
     starts_of: dict[str, FloatArray] = {}  # per dof, once: a procedure may jump hundreds of times
@@ -181,6 +181,7 @@ def stretch(
             jump[i] = False  # the pause is its time; the interval keeps its own
             ratio[i] = 1.0
     rate = spread(np.where(jump, 1.0, np.maximum(ratio, 1.0)), time)
+    rate = as_movements(ir, time, rate)
     new_dt = whole_frames(dt, np.where(jump, need, dt * rate), period)
     new = np.concatenate([[time[0]], time[0] + np.cumsum(new_dt)])
     cuts = {c: (math.ceil(p / period - 1e-6) * period, i) for c, (p, i) in cuts.items()}
@@ -198,6 +199,41 @@ def stretch(
             dense.q[[cuts[c][1] for c in at]],
         ),
     )
+
+
+def movement_windows(ir: MotionIR) -> list[tuple[float, float]]:
+    """(start, end) of each movement from rest to rest that the tool pass timed on one bell:
+    every stroke's seat, swing and return (``result["phases"]``)."""
+    out = []
+    for seg in ir.segments:
+        phases = (seg.result or {}).get("phases") if isinstance(seg.result, dict) else None
+        if isinstance(phases, dict):
+            out += [(float(a), float(b)) for a, b in phases.values() if b > a + EPS]
+    return out
+
+
+def in_movements(ir: MotionIR, time: FloatArray) -> NDArray[np.bool_]:
+    """(N - 1,) whether each interval lies in one of the ``movement_windows``."""
+    centre = 0.5 * (time[:-1] + time[1:])
+    out = np.zeros(len(centre), dtype=bool)
+    for a, b in movement_windows(ir):
+        out |= (centre >= a) & (centre <= b)
+    return out
+
+
+def as_movements(ir: MotionIR, time: FloatArray, rate: FloatArray) -> FloatArray:
+    """``rate`` (N - 1,) with each movement's intervals (``movement_windows``) slowed by the
+    movement's largest rate (its own or one faded in from a neighbour's, ``spread``): a bell
+    stretched where it is fastest became a plateau with a bump at each end, two speed peaks
+    (a still trunk's ratchet returns, pump_low_kneel female P10: 30 of 36); stretched evenly it
+    stays one bell. The movement starts and ends at rest: its clock may change there."""
+    centre = 0.5 * (time[:-1] + time[1:])
+    out = rate.copy()
+    for a, b in movement_windows(ir):
+        lo, hi = np.searchsorted(centre, [a, b])
+        if hi > lo and float(out[lo:hi].max()) > 1.0 + EPS:
+            out[lo:hi] = np.maximum(out[lo:hi], float(rate[lo:hi].max()))
+    return out
 
 
 def whole_frames(dt: FloatArray, new_dt: FloatArray, period: float) -> FloatArray:

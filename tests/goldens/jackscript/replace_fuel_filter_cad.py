@@ -338,21 +338,18 @@ def replace_fuel_filter_cad():
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.037, 15.237, 13.165), 'spine_thoracic': (-7.996, 9.013, 19.73),
         'neck': (35.0, 30.357, -18.818), 'head': (11.226, -11.146),
-        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.301, 18.164, 6.002),
+        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.28, 18.167, 6.002),
+        'right_elbow': (28.13, 17.195),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (39.657, 15.845, 13.22), 'spine_thoracic': (-8.225, 9.05, 20.036),
         'neck': (34.998, 30.285, -19.238), 'head': (13.21, -11.169),
-        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.459, 17.83, 6.059),
-        'right_elbow': (28.117, 17.195),
+        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.278, 17.849, 6.058),
+        'right_elbow': (28.414, 17.195),
     })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {
-        'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101),
-        'right_shoulder': (33.274, 17.845, 6.059), 'right_elbow': (28.425, 17.195),
-        'right_wrist': (-1.717, -1.983),
-    })
+    human.KeyJoints(5.0, {'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (28.425, 17.164)})
     human.KeyJoints(5.3, {'right_elbow': (28.465, 12.272)})
@@ -362,7 +359,7 @@ def replace_fuel_filter_cad():
     human.KeyJoints(5.5, {'right_elbow': (28.636, -15.365)})
     human.KeyJoints(5.6, {'right_elbow': (28.687, -33.451)})
     human.KeyJoints(5.7, {'right_elbow': (28.682, -51.278)})
-    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515)})
+    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515), 'right_wrist': (-1.609, -1.962)})
     human.KeyJoints(5.9, {
         'right_shoulder': (33.319, 18.306, 5.94), 'right_elbow': (28.582, -76.834),
     })
@@ -375,17 +372,16 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(6.4, {
         'right_shoulder': (33.319, 18.3, 5.942), 'right_elbow': (28.589, -75.532),
-        'right_wrist': (-1.606, -1.974),
     })
     human.KeyJoints(6.5, {'right_elbow': (28.662, -59.213)})
-    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545)})
-    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363), 'right_wrist': (-1.7, -1.946)})
+    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545), 'right_wrist': (-1.651, -1.932)})
+    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363)})
     human.KeyJoints(6.8, {
         'right_shoulder': (33.27, 17.826, 6.064), 'right_elbow': (28.363, 24.501),
     })
-    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211)})
+    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211), 'right_wrist': (-1.682, -2.039)})
     human.KeyJoints(7.0, {'right_elbow': (27.934, 70.933)})
-    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835), 'right_wrist': (-1.622, -2.046)})
+    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:42:9 replace_fuel_filter_cad > grasp: grip on r_hand
@@ -451,8 +447,8 @@ def replace_fuel_filter_cad():
         'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.785, 14.982),
         'right_shoulder': (29.183, 0.937, 11.196), 'right_elbow': (57.07, 80.0),
         'right_wrist': (-9.516, 1.814), 'left_clavicle': (-9.686, 14.862),
-        'left_shoulder': (26.212, 5.633, 8.631), 'left_elbow': (62.054, 17.296),
-        'left_wrist': (-3.404, 6.258),
+        'left_shoulder': (26.195, 5.637, 8.631), 'left_elbow': (62.083, 17.296),
+        'left_wrist': (-3.407, 6.266),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
@@ -500,8 +496,8 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.9, {
-        'head': (15.0, -11.25), 'right_shoulder': (25.266, 16.235, -86.104),
-        'right_elbow': (31.329, -34.484),
+        'head': (15.0, -11.25), 'right_shoulder': (25.27, 16.255, -86.105),
+        'right_elbow': (31.292, -34.484),
     })
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.988396, duration=0.072)
@@ -560,24 +556,21 @@ def replace_fuel_filter_cad():
     human.KeyJoints(10.0, {
         'spine_lumbar': (60.0, 19.675, -14.555), 'spine_thoracic': (5.306, -9.231, -28.968),
         'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.824, 14.986),
-        'left_shoulder': (53.882, 11.484, 22.864), 'left_elbow': (12.861, 52.015),
-        'left_wrist': (-45.725, 15.132),
+        'left_shoulder': (53.891, 11.48, 22.864), 'left_elbow': (12.842, 52.015),
+        'left_wrist': (-45.702, 15.125),
     })
     human.KeyJoints(10.1, {
         'spine_lumbar': (60.0, 19.999, -14.998), 'spine_thoracic': (7.174, -9.997, -29.996),
         'neck': (31.492, -8.768, 9.26), 'head': (12.667, 10.389), 'left_clavicle': (-9.999, 15.0),
-        'left_shoulder': (56.34, 11.998, 22.981), 'left_elbow': (9.817, 52.704),
-        'left_wrist': (-44.9, 14.74),
+        'left_shoulder': (56.414, 11.962, 22.984), 'left_elbow': (9.661, 52.704),
+        'left_wrist': (-44.708, 14.686),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
     human.KeyJoints(10.2, {
         'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268), 'right_elbow': (30.675, -35.047),
-        'left_elbow': (9.649, 52.706), 'left_wrist': (-44.703, 14.684),
     })
-    human.KeyJoints(10.3, {
-        'neck': (30.638, -8.565, 9.124), 'left_shoulder': (56.424, 11.963, 22.984),
-    })
+    human.KeyJoints(10.3, {'neck': (30.638, -8.565, 9.124)})
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.4, {
         'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
@@ -617,12 +610,12 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(11.2, {
-        'left_shoulder': (-34.071, 42.474, -73.868), 'left_elbow': (97.222, 31.171),
-        'left_wrist': (-66.308, 8.759),
+        'left_shoulder': (-34.072, 42.463, -73.867), 'left_elbow': (97.228, 31.171),
+        'left_wrist': (-66.312, 8.761),
     })
     human.KeyJoints(11.3, {
-        'left_shoulder': (-34.185, 43.013, -75.58), 'left_elbow': (98.39, 31.103),
-        'left_wrist': (-66.808, 8.741),
+        'left_shoulder': (-34.188, 42.971, -75.578), 'left_elbow': (98.415, 31.103),
+        'left_wrist': (-66.823, 8.748),
     })
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.320387, duration=0.072)
@@ -667,14 +660,14 @@ def replace_fuel_filter_cad():
     human.KeyJoints(12.2, {
         'spine_lumbar': (55.121, -16.806, 6.128), 'spine_thoracic': (-12.809, 8.52, -9.874),
         'neck': (33.347, -17.814, 24.779), 'right_clavicle': (-9.456, 14.058),
-        'right_shoulder': (47.638, -23.697, -63.725), 'right_elbow': (31.382, -27.48),
+        'right_shoulder': (47.638, -23.697, -63.725), 'right_elbow': (31.383, -27.48),
         'right_wrist': (62.961, 11.313),
     })
     human.KeyJoints(12.3, {
         'spine_lumbar': (54.169, -18.185, 6.926), 'spine_thoracic': (-13.73, 9.259, -9.112),
         'neck': (32.712, -22.686, 8.865), 'right_clavicle': (-9.366, 13.938),
-        'right_shoulder': (48.427, -25.989, -62.67), 'right_elbow': (31.437, -27.15),
-        'right_wrist': (62.884, 11.082),
+        'right_shoulder': (48.408, -26.034, -62.665), 'right_elbow': (31.466, -27.15),
+        'right_wrist': (62.92, 11.089),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.322839, duration=0.072)

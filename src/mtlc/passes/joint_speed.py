@@ -53,6 +53,7 @@ TURN_DOFS = ("wrist_flex", "wrist_dev", "elbow_pro")
 GAIT_DOFS = ("hip_", "knee_", "ankle_", "toe_")  # the gait's own, while a walk drives them
 RAMP = 0.15  # s each side over which a slowing fades in and out
 JUMP = 2.0  # an interval this many times too fast is given a movement's time of its own
+MOVEMENT_RATIO = 3.0  # a tool's movement at most this many times too fast is slowed as a whole
 PEAK = 1.875  # minimum jerk's peak speed over its mean
 ROUNDS = 6  # re-interpolated and judged again: the interpolation of stretched keys moves a little
 EPS = 1e-9
@@ -165,6 +166,9 @@ def stretch(
     dt = np.diff(time)
     ratio = ratio.copy()
     jump = ratio > JUMP
+    movements = movement_spans(ir, time, ratio)
+    for span in movements:  # a tool's bell is a movement, not a jump
+        jump[span] = False
     need = PEAK * ratio * dt  # a jump's time at the limit
     cuts: dict[float, tuple[float, int]] = {}  # cut -> (pause, the dense frame before it)
     starts_of: dict[str, FloatArray] = {}  # per dof, once: a procedure may jump hundreds of times
@@ -181,6 +185,12 @@ def stretch(
             jump[i] = False  # the pause is its time; the interval keeps its own
             ratio[i] = 1.0
     rate = spread(np.where(jump, 1.0, np.maximum(ratio, 1.0)), time)
+    for span in movements:
+        # slowed where it is fastest, a stroke's bell became a plateau with a bump at each end,
+        # two speed peaks (a still trunk's ratchet returns, pump_low_kneel female P10: 30 of
+        # 36); slowed evenly it stays one bell. It starts and ends at rest: its clock may
+        # change there
+        rate[span] = np.maximum(rate[span], float(ratio[span].max()))
     new_dt = whole_frames(dt, np.where(jump, need, dt * rate), period)
     new = np.concatenate([[time[0]], time[0] + np.cumsum(new_dt)])
     cuts = {c: (math.ceil(p / period - 1e-6) * period, i) for c, (p, i) in cuts.items()}
@@ -198,6 +208,30 @@ def stretch(
             dense.q[[cuts[c][1] for c in at]],
         ),
     )
+
+
+def movement_windows(ir: MotionIR) -> list[tuple[float, float]]:
+    """(start, end) of each movement from rest to rest that the tool pass timed on one bell:
+    every stroke's seat, swing and return (``result["phases"]``)."""
+    out = []
+    for seg in ir.segments:
+        phases = (seg.result or {}).get("phases") if isinstance(seg.result, dict) else None
+        if isinstance(phases, dict):
+            out += [(float(a), float(b)) for a, b in phases.values() if b > a + EPS]
+    return out
+
+
+def movement_spans(ir: MotionIR, time: FloatArray, ratio: FloatArray) -> list[slice]:
+    """The intervals (slices of the dense frames' (N - 1,)) of each of the
+    ``movement_windows`` whose fastest joint is at most ``MOVEMENT_RATIO`` times too fast: a
+    movement to slow as a whole. One faster holds a branch flip, a jump the old rule times."""
+    centre = 0.5 * (time[:-1] + time[1:])
+    out = []
+    for a, b in movement_windows(ir):
+        lo, hi = (int(k) for k in np.searchsorted(centre, [a, b]))
+        if hi > lo and float(ratio[lo:hi].max()) <= MOVEMENT_RATIO:
+            out.append(slice(lo, hi))
+    return out
 
 
 def whole_frames(dt: FloatArray, new_dt: FloatArray, period: float) -> FloatArray:

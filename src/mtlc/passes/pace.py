@@ -78,6 +78,8 @@ MAX_STRETCH = 3.0  # a movement lasts at most this many times the timeline's tim
 # correction goes to nothing where its end already holds the part; how close (m) both hands
 # must be to their ends of the part for the point to count as reached
 END_BLEND = 0.25
+CLEAN_SIGMA = 4.0  # points of ``PATH_POINTS``: the carried path's last low-pass (``_cleaned``)
+CLEAN_SPARE = 5e-4  # m: how much further from the part's length the low-passed path may go
 REACH_TOL = 2e-3
 NEED_SAMPLES = 512  # the minimum-jerk clock sampled this densely to find the fastest joint
 
@@ -241,6 +243,7 @@ class ReachPath:
 
     progress: FloatArray  # (P,) from 0 to 1
     q: FloatArray  # (P, len(dofs))
+    carried: bool = False  # a part in both hands (``_carried``): may end off the solver's pose
 
     def at(self, s: FloatArray) -> FloatArray:
         return pchip(self.progress, self.q)(s)
@@ -341,11 +344,29 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
             q,  # the continuation to its own end, where neither of those holds the part
         ]
         best = min(candidates, key=lambda c: _holding(skel, smooth, c, goal))
+        best = _cleaned(skel, smooth, best, goal, idx)
         return Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, best)
     # out of reach: the arms take the part as far along its path as they can, held (the
     # continuation stops it there, ``carry.solve_along``)
+    q = _cleaned(skel, smooth, q, goal, idx)
     out = Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, q)
     _record_shortfall(ir, m, out)
+    return out
+
+
+def _cleaned(
+    skel: object, path: Frames, q: FloatArray, goal: FloatArray, idx: list[int]
+) -> FloatArray:
+    """``q`` low-passed over ``CLEAN_SIGMA`` points (its ends kept) where that holds the part
+    as well, within ``CLEAN_SPARE``: the solver's point-by-point answers zig-zag by a few
+    tenths of a mm and stall at a joint's limit then catch up 7 mm in one point, and at speed
+    that was a second bell and LDLJ -13 for a hood lifted in both hands (vehicle_battery
+    female P50)."""
+    out = q.copy()
+    out[:, idx] = smooth_path(q[:, idx], CLEAN_SIGMA)
+    was, now = _holding(skel, path, q, goal), _holding(skel, path, out, goal)
+    if now[0] > was[0] or now[1] > was[1] + CLEAN_SPARE * 1000.0:
+        return q
     return out
 
 
@@ -422,7 +443,7 @@ def reach_path(
     if len(held) == 1 and held[0].start <= m.start + EPS:  # the part moved from where it is
         chosen = _carried(ir, m, body, idx, held[0])
         u2, _ = progress(ir, m, chosen)
-        return ReachPath(u2, chosen.q[:, idx])
+        return ReachPath(u2, chosen.q[:, idx], carried=True)
     chosen = _smoothed(ir, m, body, idx, held, SMOOTH_SIGMA)
     allowed = approach_depth(ir, m, chosen) + APPROACH_SPARE
     # a part in both hands keeps 10 %: smoothed wider after it is made rigid, the correction
@@ -434,6 +455,28 @@ def reach_path(
             break
     u2, _ = progress(ir, m, chosen)
     return ReachPath(u2, chosen.q[:, idx])
+
+
+def _from_carried_end(
+    m: Movement, t_new: FloatArray, tau: FloatArray, values: FloatArray,
+    ends: dict[str, tuple[float, float]], keys: DofKeys,
+) -> None:  # fmt: skip
+    """Start the movement's ``values`` (in place) where a carried path before it left its dofs
+    (``ends``; no key of the dof in between), the difference let go of on the movement's own
+    minimum-jerk bell. A part in both hands can end on the arms' own end pose, turned another
+    way than the solver's, and the next reach, solved from the solver's, began with a jump that
+    joint_speed gave a second of its own: two bells (vehicle_battery female P1, the wrench's
+    reach after the hood is lifted)."""
+    fade = 1.0 - minimum_jerk(tau)
+    for k, name in enumerate(m.dofs):
+        if name not in ends:
+            continue
+        at, value = ends[name]
+        t, _ = keys.get(name, (np.zeros(0), None))
+        between = t[(t > at + EPS) & (t < m.start - EPS)]
+        delta = value - float(values[0, k])
+        if between.size == 0 and abs(delta) > EPS:
+            values[:, k] += fade * delta
 
 
 def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
@@ -519,12 +562,18 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     ]
     warp = TimeWarp.of(stretches)
     timewarp.apply(ir, warp)
+    keys = dof_keys(ir)
+    ends: dict[str, tuple[float, float]] = {}  # dof -> (time, value) a carried path ended on
     for m, path in zip(moves, paths, strict=True):
         m.start, m.end = warp(m.start), warp(m.end)
         if path is None:
             continue
         t_new = new_times(m)
-        values = path.at(minimum_jerk((t_new - m.start) / (m.end - m.start)))
+        tau = (t_new - m.start) / (m.end - m.start)
+        values = path.at(minimum_jerk(tau))
+        _from_carried_end(m, t_new, tau, values, ends, keys)
+        if path.carried:
+            ends.update({n: (m.end, float(values[-1, k])) for k, n in enumerate(m.dofs)})
         for seg in m.segments:
             inside = (t_new >= seg.start - EPS) & (t_new <= seg.end + EPS)
             seg.keyframes = Keyframes(time=t_new[inside], dofs=tuple(m.dofs), q=values[inside])

@@ -19,21 +19,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection
+from dataclasses import dataclass
 
 import numpy as np
 
+from mtlc.body import part_site_positions
 from mtlc.body.ik.clearance import penetrations
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, Frames, MotionIR
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import ARM_HAND, _arm_dofs, _closed_at, on_site
-from mtlc.passes.profile import minimum_jerk
+from mtlc.passes.profile import minimum_jerk, smooth_path
 
 TRUNK = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 NEAR = math.radians(2.0)  # rad: a group of joints this close to its rest pose is left alone
 SPEED = math.radians(150.0)  # rad/s: a ramp's mean joint speed at most (peak 280 deg/s)
 PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
 MIN_RAMP = 0.6  # s: the shortest ramp
+MIN_PATH = 0.01  # m: a reach whose effector moves less is not re-timed (a turn in place)
+PATH_POINTS = 121  # a re-timed reach's path, resampled at even steps of arc length
+SMOOTH_SIGMA = 0.1  # of the path's arc length: pace's least smoothing
 MIN_FADE = 0.3  # s: the shortest fade of a correction over the segment that keys its joint
 EPS = 1e-9
 
@@ -44,17 +49,83 @@ def ramp_length(offset: FloatArray, room: float) -> float:
     return min(room, max(MIN_RAMP, PEAK * float(np.abs(offset).max(initial=0.0)) / SPEED))
 
 
-def next_keyed(ir: MotionIR, names: Collection[str], after: float) -> tuple[float, float] | None:
-    """(start, end) of the first segment starting at ``after`` or later whose keyframes move
-    any of the dofs ``names``; None when none does."""
-    spans = [
-        (s.start, s.end)
+@dataclass(frozen=True)
+class Keyed:
+    """The first movement that keys a joint after a correction: its window, the effector whose
+    reach it is (None: not a reach) and the dofs its segments key."""
+
+    start: float
+    end: float
+    effector: str | None = None
+    dofs: frozenset[str] = frozenset()
+
+
+def next_movement(ir: MotionIR, names: Collection[str], after: float) -> Keyed | None:
+    """The first movement starting at ``after`` or later whose keyframes move any of the dofs
+    ``names``; None when none does. A TA runs on through the TO that continues it (same track,
+    adjacent): pace times the two as one bell."""
+    keyed = [
+        s
         for s in ir.segments
         if s.start >= after - EPS
         and s.keyframes is not None
         and not names.isdisjoint(s.keyframes.dofs)
     ]
-    return min(spans, default=None)
+    if not keyed:
+        return None
+    first = min(keyed, key=lambda s: (s.start, s.end))
+    if first.kind not in ("TA", "TO"):
+        return Keyed(first.start, first.end)
+    chain = [first]
+    if first.kind == "TA":
+        chain += [
+            s for s in ir.on_track(first.track)
+            if s.kind == "TO" and s.keyframes is not None and abs(s.start - first.end) < EPS
+        ][:1]  # fmt: skip
+    sites = {site.name for site in ir.skeleton.sites}
+    effector = first.goal.effector if first.goal.effector in sites else None
+    dofs = frozenset(n for s in chain for n in s.keyframes.dofs)
+    return Keyed(first.start, chain[-1].end, effector, dofs)
+
+
+def next_keyed(ir: MotionIR, names: Collection[str], after: float) -> tuple[float, float] | None:
+    """(start, end) of ``next_movement``."""
+    m = next_movement(ir, names, after)
+    return None if m is None else (m.start, m.end)
+
+
+def repace(skel: Skeleton, frames: Frames, m: Keyed, dofs: list[int]) -> None:
+    """Make the reach ``m``, with a correction let go of over it on ``dofs``, one movement
+    again, in place: its joints' path (the reach's own dofs and ``dofs``) at even steps of the
+    effector's arc length, low-passed as pace does (``SMOOTH_SIGMA``, both ends kept), then
+    run on one minimum-jerk bell over the window. The correction's ramp added to the reach's
+    made a second bell where the two pulled the hand different ways, and a corner where the
+    reach turned onto its site (aircraft_panel_sideways' move after a carried stand: two
+    speed peaks, LDLJ -7.0 -> -8.5)."""
+    t = frames.time
+    rows = np.flatnonzero((t >= m.start - EPS) & (t <= m.end + EPS))
+    if m.effector is None or rows.size < 4 or m.end - m.start <= EPS:
+        return
+    cols = sorted({*dofs, *(skel.dof_index(n) for n in m.dofs)})
+    q = frames.q[rows]
+    p = part_site_positions(
+        skel, q, frames.root_position[rows], frames.root_rotation[rows], [m.effector]
+    )[:, 0]
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    total = float(np.sum(step))
+    if total <= MIN_PATH:
+        return
+    u = np.concatenate([[0.0], np.cumsum(step)]) / total
+    u += np.arange(len(u)) * 1e-12  # strictly rising where the hand stood still
+    even = np.linspace(0.0, 1.0, PATH_POINTS)
+    path = np.stack([np.interp(even, u, q[:, d]) for d in cols], axis=1)
+    path = smooth_path(path, SMOOTH_SIGMA * (PATH_POINTS - 1))
+    s = minimum_jerk((t[rows] - m.start) / (m.end - m.start))
+    for k, d in enumerate(cols):
+        frames.q[rows, d] = np.interp(s, even, path[:, k])
+    frames.q[np.ix_(rows, cols)] = np.clip(
+        frames.q[np.ix_(rows, cols)], skel.lower[cols], skel.upper[cols]
+    )
 
 
 def keep_until_keyed(
@@ -73,16 +144,18 @@ def keep_until_keyed(
     else:  # a step: the frames from ``a`` on
         up = (t >= a - EPS).astype(float)
     names = set(until) if until is not None else {skel.dof_names[d] for d in dofs}
-    span = next_keyed(ir, names, a)
+    span = next_movement(ir, names, a)
     down = np.ones_like(t)
     end = np.inf
-    if span is not None:  # kept until that segment, let go of over it
-        start, end = span[0], max(span[1], span[0] + MIN_FADE)
+    if span is not None:  # kept until that movement, let go of over it
+        start, end = span.start, max(span.end, span.start + MIN_FADE)
         down = 1.0 - minimum_jerk(np.clip((t - start) / (end - start), 0.0, 1.0))
     rows = np.flatnonzero((t >= a - EPS) & (t < end))
     weight = np.minimum(up[rows], down[rows])
     moved = frames.q[np.ix_(rows, dofs)] + weight[:, None] * offset[None]
     frames.q[np.ix_(rows, dofs)] = np.clip(moved, skel.lower[dofs], skel.upper[dofs])
+    if span is not None and span.start >= a + EPS:  # let go of over a reach: one bell again
+        repace(skel, frames, span, dofs)
 
 
 def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray]) -> list[str]:

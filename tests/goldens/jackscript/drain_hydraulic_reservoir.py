@@ -213,24 +213,23 @@ def drain_reservoir():
     human.KeyJoints(3.3, {
         'spine_lumbar': (59.951, -1.866, 3.54), 'spine_thoracic': (29.3, -2.131, 2.906),
         'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.251, 1.717),
-        'right_shoulder': (102.566, -6.815, 4.564), 'right_elbow': (31.452, 17.106),
-        'right_wrist': (-2.126, -1.624),
+        'right_shoulder': (102.574, -6.814, 4.564), 'right_elbow': (31.439, 17.106),
+        'right_wrist': (-2.125, -1.627),
     })
     human.KeyJoints(3.4, {
         'spine_lumbar': (59.999, -2.051, 3.901), 'spine_thoracic': (29.365, -2.346, 3.205),
         'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.384, 1.876),
-        'right_shoulder': (103.306, -5.742, 4.214), 'right_wrist': (-2.236, -1.728),
+        'right_shoulder': (103.45, -5.725, 4.207), 'right_elbow': (30.902, 17.105),
+        'right_wrist': (-2.213, -1.778),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
-        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003), 'right_elbow': (30.878, 17.105),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {
         'right_shoulder': (103.481, -5.668, 4.189), 'right_elbow': (30.996, 4.492),
-        'right_wrist': (-2.237, -1.761),
     })
     human.KeyJoints(3.7, {'right_elbow': (31.213, -26.174)})
     human.KeyJoints(3.8, {'right_elbow': (31.281, -57.713)})
@@ -240,12 +239,12 @@ def drain_reservoir():
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=3.903593, duration=0.2628)
-    human.KeyJoints(4.0, {
-        'neck': (0.06, 0.217, -7.109), 'head': (0.061, 0.002), 'right_wrist': (-2.234, -1.664),
-    })
+    human.KeyJoints(4.0, {'neck': (0.06, 0.217, -7.109), 'head': (0.061, 0.002)})
     human.KeyJoints(4.1, {'neck': (2.596, -0.025, 0.399), 'head': (2.596, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.2, {'neck': (3.349, -0.096, 2.697), 'head': (3.35, -0.001)})
+    human.KeyJoints(4.2, {
+        'neck': (3.349, -0.096, 2.697), 'head': (3.35, -0.001), 'right_wrist': (-2.234, -1.664),
+    })
     human.KeyJoints(7.3, {'neck': (3.349, -0.096, 2.63)})
     human.KeyJoints(8.1, {'right_elbow': (31.249, -72.895)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand

@@ -150,14 +150,14 @@ def remove_access_panel():
     human.KeyJoints(2.4, {
         'spine_lumbar': (5.331, 0.71, 1.242), 'spine_thoracic': (-1.43, -1.394, 1.231),
         'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (2.014, 0.687),
-        'right_shoulder': (89.036, 10.064, 0.169), 'right_elbow': (32.238, 10.408),
+        'right_shoulder': (89.042, 10.064, 0.169), 'right_elbow': (32.228, 10.408),
         'right_wrist': (-1.383, -29.157),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.075, 0.809, 1.415), 'spine_thoracic': (-1.64, -1.593, 1.402),
         'neck': (-0.252, -0.593, -24.712), 'head': (-0.376, -0.001),
-        'right_clavicle': (2.301, 0.781), 'right_shoulder': (91.678, 10.535, -0.321),
-        'right_elbow': (31.982, 10.171), 'right_wrist': (-1.496, -29.962),
+        'right_clavicle': (2.301, 0.781), 'right_shoulder': (91.737, 10.536, -0.322),
+        'right_elbow': (31.885, 10.171), 'right_wrist': (-1.489, -29.962),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
@@ -636,8 +636,8 @@ def remove_access_panel():
     human.KeyJoints(13.3, {
         'spine_lumbar': (7.087, -13.846, 9.572), 'spine_thoracic': (-8.409, -4.43, 9.141),
         'neck': (0.331, -0.49, -14.055), 'head': (0.458, -0.015), 'right_clavicle': (2.709, 7.889),
-        'right_shoulder': (89.446, 7.248, 1.161), 'right_elbow': (32.938, 11.056),
-        'right_wrist': (-1.354, -29.95),
+        'right_shoulder': (89.506, 7.248, 1.159), 'right_elbow': (32.852, 11.056),
+        'right_wrist': (-1.349, -29.978),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
@@ -1740,7 +1740,7 @@ def remove_access_panel():
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=12.263281)
+    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=11.963281)
     human.KeyJoints(34.5, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (19.964, 32.271, -15.376), 'right_elbow': (36.394, 3.567),
@@ -1760,551 +1760,539 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'right_shoulder': (54.958, 2.35, 10.584), 'right_elbow': (32.343, 18.046),
-        'right_wrist': (-1.074, -20.253),
+        'right_shoulder': (54.96, 2.35, 10.584), 'right_elbow': (32.341, 18.046),
+        'right_wrist': (-1.074, -20.255),
     })
     human.KeyJoints(35.0, {
-        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.15),
+        'right_shoulder': (57.277, 2.066, 10.929), 'right_elbow': (31.937, 18.34),
+        'right_wrist': (-1.075, -21.227),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=35.003158, duration=0.072123)
+    human.Grasp('right_hand', 'close', start=35.003158, duration=0.072117)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'right_shoulder': (57.257, 1.896, 10.211), 'right_elbow': (32.114, 19.575),
-        'right_wrist': (-1.046, -21.469),
+        'right_shoulder': (57.269, 1.909, 10.269), 'right_elbow': (32.084, 19.477),
+        'right_wrist': (-1.046, -21.441),
     })
     human.KeyJoints(35.2, {
-        'right_shoulder': (54.92, 1.891, 0.893), 'right_elbow': (44.264, 59.079),
-        'right_wrist': (2.71, -30.0),
+        'right_shoulder': (54.913, 1.877, 1.172), 'right_elbow': (43.927, 57.606),
+        'right_wrist': (2.427, -30.0),
     })
     human.KeyJoints(35.3, {
-        'right_shoulder': (58.998, 7.252, 9.241), 'right_elbow': (52.696, 80.0),
-        'right_wrist': (23.215, -30.0),
+        'right_shoulder': (58.775, 7.2, 9.131), 'right_elbow': (52.594, 80.0),
+        'right_wrist': (22.067, -30.0),
     })
     human.KeyJoints(35.4, {
-        'right_shoulder': (55.948, 4.452, 3.593), 'right_elbow': (60.169, 80.0),
-        'right_wrist': (33.538, -30.0),
+        'right_shoulder': (57.526, 5.793, 6.128), 'right_elbow': (57.999, 80.0),
+        'right_wrist': (32.874, -30.0),
     })
     human.KeyJoints(35.5, {
-        'right_shoulder': (49.82, -6.422, -15.092), 'right_elbow': (54.62, 58.411),
-        'right_wrist': (19.259, -26.384),
+        'right_shoulder': (49.347, -6.409, -14.453), 'right_elbow': (57.302, 61.749),
+        'right_wrist': (20.721, -27.763),
     })
     human.KeyJoints(35.6, {
-        'right_shoulder': (57.466, -1.64, -7.696), 'right_elbow': (31.337, 36.132),
-        'right_wrist': (9.156, -15.87),
+        'right_shoulder': (57.492, -1.612, -7.602), 'right_elbow': (31.27, 36.036),
+        'right_wrist': (9.106, -15.857),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'right_shoulder': (58.986, 2.401, 11.302), 'right_elbow': (27.778, 18.568),
-        'right_wrist': (-0.39, -16.445),
+        'right_shoulder': (59.007, 2.418, 11.398), 'right_elbow': (27.725, 18.41),
+        'right_wrist': (-0.388, -16.406),
     })
     human.KeyJoints(35.8, {
-        'right_shoulder': (55.648, 1.985, 3.619), 'right_elbow': (39.099, 43.447),
-        'right_wrist': (0.334, -26.942),
+        'right_shoulder': (56.192, 1.797, 4.211), 'right_elbow': (36.644, 38.088),
+        'right_wrist': (-0.143, -24.68),
     })
     human.KeyJoints(35.9, {
-        'right_shoulder': (55.895, 4.054, 2.889), 'right_elbow': (49.779, 76.875),
-        'right_wrist': (9.914, -30.0),
+        'right_shoulder': (55.65, 3.569, 1.998), 'right_elbow': (49.235, 75.653),
+        'right_wrist': (8.807, -30.0),
     })
     human.KeyJoints(36.0, {
-        'right_shoulder': (59.805, 7.375, 9.501), 'right_elbow': (53.035, 80.0),
-        'right_wrist': (27.561, -30.0),
+        'right_shoulder': (59.691, 7.367, 9.481), 'right_elbow': (52.989, 80.0),
+        'right_wrist': (26.946, -30.0),
     })
     human.KeyJoints(36.1, {
-        'right_shoulder': (50.354, -2.693, -7.61), 'right_elbow': (63.797, 77.937),
-        'right_wrist': (29.286, -30.0),
+        'right_shoulder': (53.714, 1.778, -0.967), 'right_elbow': (62.581, 79.944),
+        'right_wrist': (33.529, -30.0),
     })
     human.KeyJoints(36.2, {
-        'right_shoulder': (54.593, -4.119, -13.414), 'right_elbow': (38.983, 43.773),
-        'right_wrist': (12.909, -18.674),
+        'right_shoulder': (52.065, -5.768, -15.208), 'right_elbow': (46.497, 50.272),
+        'right_wrist': (15.782, -22.221),
     })
     human.KeyJoints(36.3, {
-        'right_shoulder': (58.979, 1.954, 8.747), 'right_elbow': (27.764, 20.801),
-        'right_wrist': (0.922, -16.139),
+        'right_shoulder': (58.718, 0.636, 1.664), 'right_elbow': (28.298, 27.275),
+        'right_wrist': (4.424, -15.619),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.4, {
-        'right_shoulder': (56.182, 1.8, 4.199), 'right_elbow': (36.681, 38.19),
-        'right_wrist': (-0.134, -24.721),
+        'right_shoulder': (57.846, 1.597, 6.335), 'right_elbow': (30.791, 26.966),
+        'right_wrist': (-0.469, -19.054),
     })
     human.KeyJoints(36.5, {
-        'right_shoulder': (56.556, 5.21, 5.07), 'right_elbow': (50.843, 78.797),
-        'right_wrist': (12.633, -30.0),
+        'right_shoulder': (55.195, 2.589, 0.522), 'right_elbow': (47.705, 71.563),
+        'right_wrist': (6.327, -30.0),
     })
     human.KeyJoints(36.6, {
-        'right_shoulder': (59.732, 7.03, 8.696), 'right_elbow': (53.73, 80.0),
-        'right_wrist': (29.808, -30.0),
+        'right_shoulder': (59.758, 7.372, 9.493), 'right_elbow': (53.016, 80.0),
+        'right_wrist': (27.307, -30.0),
     })
     human.KeyJoints(36.7, {
-        'right_shoulder': (49.107, -5.805, -12.508), 'right_elbow': (61.231, 68.186),
-        'right_wrist': (23.665, -29.531),
+        'right_shoulder': (53.971, 2.09, -0.5), 'right_elbow': (62.33, 79.988),
+        'right_wrist': (33.767, -30.0),
     })
     human.KeyJoints(36.8, {
-        'right_shoulder': (56.997, -2.135, -9.173), 'right_elbow': (32.558, 37.765),
-        'right_wrist': (9.996, -16.123),
+        'right_shoulder': (50.721, -6.31, -15.413), 'right_elbow': (50.855, 54.316),
+        'right_wrist': (17.497, -24.445),
+    })
+    human.KeyJoints(36.9, {
+        'right_shoulder': (58.209, -0.652, -4.079), 'right_elbow': (29.455, 32.634),
+        'right_wrist': (7.299, -15.583),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(36.9, {
-        'right_shoulder': (59.001, 2.413, 11.368), 'right_elbow': (27.741, 18.46),
-        'right_wrist': (-0.388, -16.418),
-    })
     human.KeyJoints(37.0, {
-        'right_shoulder': (56.171, 1.808, 4.187), 'right_elbow': (36.754, 38.27),
-        'right_wrist': (-0.134, -24.774),
+        'right_shoulder': (58.964, 2.384, 11.2), 'right_elbow': (27.833, 18.732),
+        'right_wrist': (-0.392, -16.486),
     })
     human.KeyJoints(37.1, {
-        'right_shoulder': (55.128, 2.456, 0.674), 'right_elbow': (47.278, 70.255),
-        'right_wrist': (5.753, -30.0),
+        'right_shoulder': (55.585, 2.003, 3.533), 'right_elbow': (39.426, 44.248),
+        'right_wrist': (0.423, -27.209),
     })
     human.KeyJoints(37.2, {
-        'right_shoulder': (58.811, 7.216, 9.158), 'right_elbow': (52.607, 80.0),
-        'right_wrist': (22.28, -30.0),
+        'right_shoulder': (56.369, 4.925, 4.514), 'right_elbow': (50.594, 78.389),
+        'right_wrist': (11.9, -30.0),
     })
     human.KeyJoints(37.3, {
-        'right_shoulder': (56.841, 5.251, 5.083), 'right_elbow': (58.997, 80.0),
-        'right_wrist': (33.213, -30.0),
+        'right_shoulder': (59.814, 7.376, 9.502), 'right_elbow': (53.038, 80.0),
+        'right_wrist': (27.605, -30.0),
     })
     human.KeyJoints(37.4, {
-        'right_shoulder': (50.069, -6.42, -15.295), 'right_elbow': (53.546, 57.209),
-        'right_wrist': (18.744, -25.814),
+        'right_shoulder': (50.683, -2.271, -7.014), 'right_elbow': (63.828, 78.494),
+        'right_wrist': (29.981, -30.0),
     })
     human.KeyJoints(37.5, {
-        'right_shoulder': (58.332, -0.452, -3.221), 'right_elbow': (29.155, 31.87),
-        'right_wrist': (6.886, -15.561),
+        'right_shoulder': (54.301, -4.323, -13.719), 'right_elbow': (39.804, 44.464),
+        'right_wrist': (13.228, -19.047),
+    })
+    human.KeyJoints(37.6, {
+        'right_shoulder': (58.943, 1.673, 7.165), 'right_elbow': (27.833, 22.237),
+        'right_wrist': (1.7, -16.002),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(37.6, {
-        'right_shoulder': (58.428, 1.977, 8.759), 'right_elbow': (29.208, 22.714),
-        'right_wrist': (-0.443, -17.663),
-    })
     human.KeyJoints(37.7, {
-        'right_shoulder': (55.037, 2.234, 0.424), 'right_elbow': (46.304, 67.02),
-        'right_wrist': (4.611, -29.996),
+        'right_shoulder': (56.695, 1.627, 4.609), 'right_elbow': (34.633, 34.421),
+        'right_wrist': (-0.359, -22.721),
     })
     human.KeyJoints(37.8, {
-        'right_shoulder': (59.521, 7.347, 9.439), 'right_elbow': (52.92, 80.0),
-        'right_wrist': (26.035, -30.0),
+        'right_shoulder': (56.07, 4.374, 3.471), 'right_elbow': (50.108, 77.546),
+        'right_wrist': (10.669, -30.0),
     })
     human.KeyJoints(37.9, {
-        'right_shoulder': (57.849, 6.034, 6.604), 'right_elbow': (57.477, 80.0),
-        'right_wrist': (32.629, -30.0),
+        'right_shoulder': (59.812, 7.256, 9.215), 'right_elbow': (53.143, 80.0),
+        'right_wrist': (28.414, -30.0),
     })
     human.KeyJoints(38.0, {
-        'right_shoulder': (49.223, -4.468, -10.248), 'right_elbow': (63.21, 73.606),
-        'right_wrist': (26.27, -30.0),
+        'right_shoulder': (49.457, -3.925, -9.397), 'right_elbow': (63.57, 75.336),
+        'right_wrist': (27.225, -30.0),
     })
     human.KeyJoints(38.1, {
-        'right_shoulder': (53.214, -5.077, -14.598), 'right_elbow': (42.964, 47.209),
-        'right_wrist': (14.458, -20.498),
+        'right_shoulder': (55.364, -3.55, -12.432), 'right_elbow': (36.863, 41.995),
+        'right_wrist': (12.073, -17.728),
     })
     human.KeyJoints(38.2, {
-        'right_shoulder': (58.863, 1.219, 4.681), 'right_elbow': (27.993, 24.499),
-        'right_wrist': (2.926, -15.806),
+        'right_shoulder': (58.985, 2.029, 9.168), 'right_elbow': (27.755, 20.419),
+        'right_wrist': (0.715, -16.177),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.3, {
-        'right_shoulder': (56.945, 1.535, 4.764), 'right_elbow': (33.697, 32.953),
-        'right_wrist': (-0.436, -21.784),
+        'right_shoulder': (56.58, 1.666, 4.522), 'right_elbow': (35.08, 35.18),
+        'right_wrist': (-0.322, -23.164),
     })
     human.KeyJoints(38.4, {
-        'right_shoulder': (55.829, 3.936, 2.696), 'right_elbow': (49.642, 76.583),
-        'right_wrist': (9.615, -30.0),
+        'right_shoulder': (55.779, 3.838, 2.522), 'right_elbow': (49.531, 76.348),
+        'right_wrist': (9.384, -30.0),
     })
     human.KeyJoints(38.5, {
-        'right_shoulder': (59.814, 7.312, 9.35), 'right_elbow': (53.099, 80.0),
-        'right_wrist': (28.042, -30.0),
+        'right_shoulder': (59.809, 7.375, 9.502), 'right_elbow': (53.036, 80.0),
+        'right_wrist': (27.579, -30.0),
     })
     human.KeyJoints(38.6, {
-        'right_shoulder': (49.495, -4.159, -9.826), 'right_elbow': (63.659, 75.197),
-        'right_wrist': (26.728, -29.998),
+        'right_shoulder': (51.32, -1.427, -5.818), 'right_elbow': (63.793, 79.219),
+        'right_wrist': (31.296, -30.0),
     })
     human.KeyJoints(38.7, {
-        'right_shoulder': (55.786, -3.234, -11.767), 'right_elbow': (35.738, 41.132),
-        'right_wrist': (11.658, -17.197),
+        'right_shoulder': (53.721, -4.734, -14.251), 'right_elbow': (41.47, 45.895),
+        'right_wrist': (13.876, -19.808),
     })
     human.KeyJoints(38.8, {
-        'right_shoulder': (59.006, 2.335, 10.919), 'right_elbow': (27.724, 18.835),
-        'right_wrist': (-0.144, -16.341),
+        'right_shoulder': (58.895, 1.382, 5.565), 'right_elbow': (27.93, 23.692),
+        'right_wrist': (2.489, -15.874),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
-        'right_shoulder': (56.62, 1.611, 4.512), 'right_elbow': (34.91, 35.045),
-        'right_wrist': (-0.349, -22.98),
+        'right_shoulder': (57.794, 1.58, 6.183), 'right_elbow': (30.938, 27.325),
+        'right_wrist': (-0.472, -19.186),
     })
     human.KeyJoints(39.0, {
-        'right_shoulder': (55.02, 2.193, 0.452), 'right_elbow': (46.036, 66.078),
-        'right_wrist': (4.328, -29.994),
+        'right_shoulder': (55.001, 2.142, 0.756), 'right_elbow': (45.339, 63.39),
+        'right_wrist': (3.631, -29.968),
     })
     human.KeyJoints(39.1, {
-        'right_shoulder': (57.919, 6.846, 8.386), 'right_elbow': (52.116, 79.965),
-        'right_wrist': (17.964, -30.0),
+        'right_shoulder': (58.293, 7.045, 8.803), 'right_elbow': (52.347, 80.0),
+        'right_wrist': (19.634, -30.0),
     })
     human.KeyJoints(39.2, {
-        'right_shoulder': (58.668, 6.518, 7.589), 'right_elbow': (56.1, 80.0),
-        'right_wrist': (31.923, -30.0),
+        'right_shoulder': (59.131, 6.757, 8.095), 'right_elbow': (55.178, 80.0),
+        'right_wrist': (31.279, -30.0),
     })
     human.KeyJoints(39.3, {
-        'right_shoulder': (49.369, -6.493, -14.563), 'right_elbow': (56.796, 61.039),
-        'right_wrist': (20.401, -27.516),
+        'right_shoulder': (49.102, -6.115, -13.4), 'right_elbow': (59.815, 65.293),
+        'right_wrist': (22.34, -29.102),
     })
     human.KeyJoints(39.4, {
-        'right_shoulder': (57.949, -1.049, -5.63), 'right_elbow': (30.1, 34.078),
-        'right_wrist': (8.072, -15.665),
+        'right_shoulder': (57.412, -1.717, -7.911), 'right_elbow': (31.473, 36.394),
+        'right_wrist': (9.288, -15.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'right_shoulder': (58.784, 2.242, 10.369), 'right_elbow': (28.29, 20.077),
-        'right_wrist': (-0.412, -16.874),
+        'right_shoulder': (59.001, 2.413, 11.368), 'right_elbow': (27.741, 18.459),
+        'right_wrist': (-0.387, -16.409),
     })
     human.KeyJoints(39.6, {
-        'right_shoulder': (54.969, 2.076, 0.906), 'right_elbow': (44.579, 60.693),
-        'right_wrist': (3.001, -29.954),
+        'right_shoulder': (55.252, 2.073, 2.893), 'right_elbow': (41.268, 49.232),
+        'right_wrist': (1.041, -28.675),
     })
     human.KeyJoints(39.7, {
-        'right_shoulder': (59.088, 7.274, 9.283), 'right_elbow': (52.736, 80.0),
-        'right_wrist': (23.713, -30.0),
+        'right_shoulder': (57.886, 6.857, 8.41), 'right_elbow': (52.096, 79.989),
+        'right_wrist': (17.783, -30.0),
     })
     human.KeyJoints(39.8, {
-        'right_shoulder': (58.663, 6.487, 7.527), 'right_elbow': (56.095, 80.0),
-        'right_wrist': (31.929, -30.0),
+        'right_shoulder': (58.614, 6.465, 7.481), 'right_elbow': (56.18, 80.0),
+        'right_wrist': (31.978, -30.0),
     })
     human.KeyJoints(39.9, {
-        'right_shoulder': (49.766, -3.667, -9.066), 'right_elbow': (63.92, 76.648),
-        'right_wrist': (27.55, -30.0),
+        'right_shoulder': (49.299, -6.4, -14.331), 'right_elbow': (57.671, 62.248),
+        'right_wrist': (20.943, -27.951),
     })
     human.KeyJoints(40.0, {
-        'right_shoulder': (52.519, -5.578, -15.16), 'right_elbow': (45.053, 48.945),
-        'right_wrist': (15.205, -21.52),
-    })
-    human.KeyJoints(40.1, {
-        'right_shoulder': (58.669, 0.452, 0.778), 'right_elbow': (28.399, 28.109),
-        'right_wrist': (4.871, -15.579),
+        'right_shoulder': (57.86, -1.197, -6.138), 'right_elbow': (30.316, 34.616),
+        'right_wrist': (8.353, -15.685),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.1, {
+        'right_shoulder': (58.918, 2.347, 10.984), 'right_elbow': (27.95, 19.08),
+        'right_wrist': (-0.397, -16.586),
+    })
     human.KeyJoints(40.2, {
-        'right_shoulder': (57.719, 1.608, 6.117), 'right_elbow': (31.171, 27.802),
-        'right_wrist': (-0.467, -19.404),
+        'right_shoulder': (55.002, 2.103, 1.642), 'right_elbow': (43.816, 57.56),
+        'right_wrist': (2.397, -29.835),
     })
     human.KeyJoints(40.3, {
-        'right_shoulder': (55.393, 3.035, 1.177), 'right_elbow': (48.469, 73.741),
-        'right_wrist': (7.46, -30.0),
+        'right_shoulder': (59.023, 7.267, 9.265), 'right_elbow': (52.705, 80.0),
+        'right_wrist': (23.392, -30.0),
     })
     human.KeyJoints(40.4, {
-        'right_shoulder': (59.776, 7.373, 9.496), 'right_elbow': (53.023, 80.0),
-        'right_wrist': (27.406, -30.0),
+        'right_shoulder': (56.167, 4.621, 3.902), 'right_elbow': (59.927, 80.0),
+        'right_wrist': (33.479, -30.0),
     })
     human.KeyJoints(40.5, {
-        'right_shoulder': (56.3, 4.761, 4.161), 'right_elbow': (59.742, 80.0),
-        'right_wrist': (33.427, -30.0),
+        'right_shoulder': (50.521, -6.343, -15.461), 'right_elbow': (51.817, 55.351),
+        'right_wrist': (17.949, -24.919),
     })
     human.KeyJoints(40.6, {
-        'right_shoulder': (49.056, -5.501, -12.052), 'right_elbow': (61.793, 69.212),
-        'right_wrist': (24.146, -29.787),
+        'right_shoulder': (58.439, -0.217, -2.227), 'right_elbow': (28.904, 30.941),
+        'right_wrist': (6.388, -15.547),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.7, {
-        'right_shoulder': (54.899, -3.894, -13.063), 'right_elbow': (38.134, 43.058),
-        'right_wrist': (12.576, -18.289),
+        'right_shoulder': (58.523, 2.04, 9.156), 'right_elbow': (28.958, 22.017),
+        'right_wrist': (-0.437, -17.447),
     })
     human.KeyJoints(40.8, {
-        'right_shoulder': (58.99, 2.056, 9.326), 'right_elbow': (27.744, 20.277),
-        'right_wrist': (0.638, -16.192),
+        'right_shoulder': (54.99, 2.136, 0.639), 'right_elbow': (45.684, 64.683),
+        'right_wrist': (3.964, -29.989),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.9, {
-        'right_shoulder': (56.057, 1.845, 4.093), 'right_elbow': (37.206, 39.242),
-        'right_wrist': (-0.05, -25.226),
+        'right_shoulder': (59.413, 7.336, 9.412), 'right_elbow': (52.875, 80.0),
+        'right_wrist': (25.462, -30.0),
     })
     human.KeyJoints(41.0, {
-        'right_shoulder': (56.699, 5.461, 5.563), 'right_elbow': (51.024, 79.069),
-        'right_wrist': (13.17, -30.0),
+        'right_shoulder': (55.766, 4.324, 3.354), 'right_elbow': (60.35, 80.0),
+        'right_wrist': (33.511, -30.0),
     })
     human.KeyJoints(41.1, {
-        'right_shoulder': (59.704, 6.965, 8.552), 'right_elbow': (53.915, 80.0),
-        'right_wrist': (30.126, -30.0),
+        'right_shoulder': (49.963, -6.454, -15.157), 'right_elbow': (53.624, 57.227),
+        'right_wrist': (18.739, -25.884),
     })
     human.KeyJoints(41.2, {
-        'right_shoulder': (49.119, -6.021, -12.937), 'right_elbow': (60.637, 67.032),
-        'right_wrist': (23.128, -29.294),
-    })
-    human.KeyJoints(41.3, {
-        'right_shoulder': (57.173, -1.958, -8.666), 'right_elbow': (32.099, 37.194),
-        'right_wrist': (9.705, -16.02),
+        'right_shoulder': (58.034, -0.937, -5.19), 'right_elbow': (29.885, 33.682),
+        'right_wrist': (7.859, -15.637),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(41.3, {
+        'right_shoulder': (58.984, 2.399, 11.29), 'right_elbow': (27.784, 18.587),
+        'right_wrist': (-0.389, -16.445),
+    })
     human.KeyJoints(41.4, {
-        'right_shoulder': (58.993, 2.407, 11.333), 'right_elbow': (27.76, 18.516),
-        'right_wrist': (-0.388, -16.428),
+        'right_shoulder': (55.847, 1.919, 3.862), 'right_elbow': (38.17, 41.279),
+        'right_wrist': (0.117, -26.102),
     })
     human.KeyJoints(41.5, {
-        'right_shoulder': (56.09, 1.835, 4.108), 'right_elbow': (37.103, 38.979),
-        'right_wrist': (-0.083, -25.101),
+        'right_shoulder': (55.91, 4.089, 2.966), 'right_elbow': (49.811, 76.933),
+        'right_wrist': (9.983, -30.0),
     })
     human.KeyJoints(41.6, {
-        'right_shoulder': (55.136, 2.471, 0.683), 'right_elbow': (47.311, 70.363),
-        'right_wrist': (5.795, -30.0),
+        'right_shoulder': (59.737, 7.37, 9.489), 'right_elbow': (53.007, 80.0),
+        'right_wrist': (27.193, -30.0),
     })
     human.KeyJoints(41.7, {
-        'right_shoulder': (58.689, 7.183, 9.088), 'right_elbow': (52.548, 80.0),
-        'right_wrist': (21.644, -30.0),
+        'right_shoulder': (53.0, 0.859, -2.38), 'right_elbow': (63.145, 79.824),
+        'right_wrist': (32.972, -30.0),
     })
     human.KeyJoints(41.8, {
-        'right_shoulder': (57.051, 5.435, 5.433), 'right_elbow': (58.69, 80.0),
-        'right_wrist': (33.108, -30.0),
+        'right_shoulder': (52.541, -5.555, -15.11), 'right_elbow': (44.971, 48.879),
+        'right_wrist': (15.175, -21.479),
     })
     human.KeyJoints(41.9, {
-        'right_shoulder': (50.225, -6.393, -15.364), 'right_elbow': (52.942, 56.547),
-        'right_wrist': (18.461, -25.502),
-    })
-    human.KeyJoints(42.0, {
-        'right_shoulder': (58.395, -0.307, -2.623), 'right_elbow': (29.009, 31.301),
-        'right_wrist': (6.582, -15.564),
+        'right_shoulder': (58.794, 0.908, 3.051), 'right_elbow': (28.137, 25.998),
+        'right_wrist': (3.735, -15.692),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.0, {
+        'right_shoulder': (57.533, 1.533, 5.552), 'right_elbow': (31.722, 29.111),
+        'right_wrist': (-0.471, -19.903),
+    })
     human.KeyJoints(42.1, {
-        'right_shoulder': (58.329, 1.9, 8.304), 'right_elbow': (29.469, 23.448),
-        'right_wrist': (-0.449, -17.889),
+        'right_shoulder': (55.423, 3.101, 1.314), 'right_elbow': (48.564, 74.004),
+        'right_wrist': (7.613, -30.0),
     })
     human.KeyJoints(42.2, {
-        'right_shoulder': (55.059, 2.285, 0.357), 'right_elbow': (46.652, 68.252),
-        'right_wrist': (5.003, -29.999),
+        'right_shoulder': (59.8, 7.375, 9.5), 'right_elbow': (53.028, 80.0),
+        'right_wrist': (27.449, -30.0),
     })
     human.KeyJoints(42.3, {
-        'right_shoulder': (59.603, 7.357, 9.459), 'right_elbow': (52.953, 80.0),
-        'right_wrist': (26.474, -30.0),
+        'right_shoulder': (51.182, -1.637, -6.07), 'right_elbow': (64.081, 79.141),
+        'right_wrist': (30.492, -30.0),
     })
     human.KeyJoints(42.4, {
-        'right_shoulder': (57.429, 5.753, 6.049), 'right_elbow': (58.104, 80.0),
-        'right_wrist': (32.892, -30.0),
+        'right_shoulder': (53.749, -4.73, -14.206), 'right_elbow': (41.384, 45.861),
+        'right_wrist': (13.857, -19.752),
     })
     human.KeyJoints(42.5, {
-        'right_shoulder': (49.195, -4.787, -10.78), 'right_elbow': (62.939, 72.56),
-        'right_wrist': (25.678, -29.974),
+        'right_shoulder': (58.9, 1.393, 5.629), 'right_elbow': (27.918, 23.635),
+        'right_wrist': (2.458, -15.879),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.6, {
-        'right_shoulder': (53.523, -4.881, -14.385), 'right_elbow': (42.043, 46.418),
-        'right_wrist': (14.106, -20.062),
+        'right_shoulder': (57.038, 1.514, 4.841), 'right_elbow': (33.361, 32.381),
+        'right_wrist': (-0.452, -21.453),
     })
     human.KeyJoints(42.7, {
-        'right_shoulder': (58.896, 1.374, 5.522), 'right_elbow': (27.925, 23.732),
-        'right_wrist': (2.51, -15.871),
+        'right_shoulder': (55.742, 3.764, 2.389), 'right_elbow': (49.445, 76.16),
+        'right_wrist': (9.208, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.8, {
-        'right_shoulder': (56.79, 1.587, 4.659), 'right_elbow': (34.269, 33.864),
-        'right_wrist': (-0.394, -22.357),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.613, -30.0),
     })
     human.KeyJoints(42.9, {
-        'right_shoulder': (55.951, 4.167, 3.101), 'right_elbow': (49.896, 77.093),
-        'right_wrist': (10.175, -30.0),
+        'right_shoulder': (50.433, -2.695, -7.631), 'right_elbow': (64.033, 78.249),
+        'right_wrist': (29.152, -30.0),
     })
     human.KeyJoints(43.0, {
-        'right_shoulder': (59.814, 7.253, 9.21), 'right_elbow': (53.164, 80.0),
-        'right_wrist': (28.417, -30.0),
+        'right_shoulder': (54.387, -4.259, -13.614), 'right_elbow': (39.568, 44.308),
+        'right_wrist': (13.158, -18.922),
     })
     human.KeyJoints(43.1, {
-        'right_shoulder': (49.293, -4.467, -10.293), 'right_elbow': (63.34, 73.893),
-        'right_wrist': (26.197, -29.998),
+        'right_shoulder': (58.939, 1.638, 6.974), 'right_elbow': (27.841, 22.41),
+        'right_wrist': (1.795, -15.986),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.2, {
-        'right_shoulder': (56.035, -3.026, -11.333), 'right_elbow': (35.073, 40.48),
-        'right_wrist': (11.342, -16.959),
+        'right_shoulder': (57.748, 1.584, 6.086), 'right_elbow': (31.076, 27.644),
+        'right_wrist': (-0.471, -19.312),
     })
     human.KeyJoints(43.3, {
-        'right_shoulder': (59.009, 2.397, 11.28), 'right_elbow': (27.719, 18.508),
-        'right_wrist': (-0.322, -16.376),
+        'right_shoulder': (54.993, 2.118, 1.041), 'right_elbow': (44.825, 61.374),
+        'right_wrist': (3.17, -29.938),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.4, {
-        'right_shoulder': (56.17, 1.797, 4.189), 'right_elbow': (36.725, 38.284),
-        'right_wrist': (-0.13, -24.763),
+        'right_shoulder': (57.804, 6.764, 8.215), 'right_elbow': (52.039, 79.937),
+        'right_wrist': (17.476, -30.0),
     })
     human.KeyJoints(43.5, {
-        'right_shoulder': (55.396, 3.043, 1.224), 'right_elbow': (48.469, 73.75),
-        'right_wrist': (7.46, -30.0),
+        'right_shoulder': (59.804, 7.074, 8.797), 'right_elbow': (53.519, 80.0),
+        'right_wrist': (29.479, -30.0),
     })
     human.KeyJoints(43.6, {
-        'right_shoulder': (59.639, 7.361, 9.468), 'right_elbow': (52.968, 80.0),
-        'right_wrist': (26.667, -30.0),
+        'right_shoulder': (49.182, -5.088, -11.294), 'right_elbow': (62.62, 71.57),
+        'right_wrist': (25.105, -29.879),
     })
     human.KeyJoints(43.7, {
-        'right_shoulder': (55.297, 3.679, 2.201), 'right_elbow': (61.021, 80.0),
-        'right_wrist': (33.716, -30.0),
+        'right_shoulder': (56.427, -2.692, -10.577), 'right_elbow': (34.041, 39.525),
+        'right_wrist': (10.875, -16.531),
     })
     human.KeyJoints(43.8, {
-        'right_shoulder': (49.633, -6.497, -14.964), 'right_elbow': (54.985, 58.781),
-        'right_wrist': (19.408, -26.582),
-    })
-    human.KeyJoints(43.9, {
-        'right_shoulder': (58.07, -0.884, -4.992), 'right_elbow': (29.792, 33.49),
-        'right_wrist': (7.757, -15.614),
+        'right_shoulder': (59.008, 2.353, 11.025), 'right_elbow': (27.72, 18.739),
+        'right_wrist': (-0.196, -16.348),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.9, {
+        'right_shoulder': (55.79, 1.938, 3.817), 'right_elbow': (38.425, 41.854),
+        'right_wrist': (0.18, -26.335),
+    })
     human.KeyJoints(44.0, {
-        'right_shoulder': (58.707, 2.18, 10.0), 'right_elbow': (28.485, 20.652),
-        'right_wrist': (-0.42, -17.041),
+        'right_shoulder': (57.002, 5.933, 6.508), 'right_elbow': (51.362, 79.506),
+        'right_wrist': (14.297, -30.0),
     })
     human.KeyJoints(44.1, {
-        'right_shoulder': (54.96, 2.074, 0.746), 'right_elbow': (45.009, 62.282),
-        'right_wrist': (3.358, -29.995),
+        'right_shoulder': (59.698, 7.04, 8.719), 'right_elbow': (53.763, 80.0),
+        'right_wrist': (29.815, -30.0),
     })
     human.KeyJoints(44.2, {
-        'right_shoulder': (59.233, 7.303, 9.344), 'right_elbow': (52.799, 80.0),
-        'right_wrist': (24.485, -30.0),
+        'right_shoulder': (50.55, -2.562, -7.438), 'right_elbow': (64.141, 78.547),
+        'right_wrist': (29.246, -30.0),
     })
     human.KeyJoints(44.3, {
-        'right_shoulder': (58.526, 6.424, 7.397), 'right_elbow': (56.342, 80.0),
-        'right_wrist': (32.071, -30.0),
+        'right_shoulder': (51.846, -5.952, -15.436), 'right_elbow': (47.173, 50.812),
+        'right_wrist': (16.003, -22.569),
     })
     human.KeyJoints(44.4, {
-        'right_shoulder': (49.83, -3.573, -8.927), 'right_elbow': (63.962, 76.892),
-        'right_wrist': (27.697, -30.0),
+        'right_shoulder': (58.17, -0.728, -4.365), 'right_elbow': (29.548, 32.915),
+        'right_wrist': (7.448, -15.596),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.5, {
-        'right_shoulder': (52.037, -5.862, -15.39), 'right_elbow': (46.557, 50.256),
-        'right_wrist': (15.765, -22.262),
+        'right_shoulder': (59.004, 2.415, 11.381), 'right_elbow': (27.734, 18.438),
+        'right_wrist': (-0.389, -16.414),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (58.702, 0.56, 1.311), 'right_elbow': (28.33, 27.613),
-        'right_wrist': (4.604, -15.606),
+        'right_shoulder': (55.306, 2.064, 2.99), 'right_elbow': (41.027, 48.529),
+        'right_wrist': (0.94, -28.422),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.7, {
-        'right_shoulder': (57.996, 1.675, 6.879), 'right_elbow': (30.366, 25.885),
-        'right_wrist': (-0.468, -18.675),
+        'right_shoulder': (58.028, 6.93, 8.562), 'right_elbow': (52.193, 79.999),
+        'right_wrist': (18.384, -30.0),
     })
     human.KeyJoints(44.8, {
-        'right_shoulder': (55.003, 2.104, 1.646), 'right_elbow': (43.811, 57.54),
-        'right_wrist': (2.394, -29.833),
+        'right_shoulder': (58.226, 6.251, 7.045), 'right_elbow': (56.832, 80.0),
+        'right_wrist': (32.34, -30.0),
     })
     human.KeyJoints(44.9, {
-        'right_shoulder': (57.388, 6.382, 7.423), 'right_elbow': (51.721, 79.767),
-        'right_wrist': (15.795, -30.0),
+        'right_shoulder': (49.327, -6.523, -14.541), 'right_elbow': (56.912, 61.212),
+        'right_wrist': (20.475, -27.553),
     })
     human.KeyJoints(45.0, {
-        'right_shoulder': (59.512, 6.94, 8.497), 'right_elbow': (54.278, 80.0),
-        'right_wrist': (30.436, -30.0),
+        'right_shoulder': (57.928, -1.085, -5.758), 'right_elbow': (30.151, 34.21),
+        'right_wrist': (8.141, -15.664),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(45.1, {
-        'right_shoulder': (49.327, -4.607, -10.523), 'right_elbow': (63.301, 73.61),
-        'right_wrist': (25.976, -29.965),
+        'right_shoulder': (58.903, 2.336, 10.918), 'right_elbow': (27.988, 19.191),
+        'right_wrist': (-0.399, -16.618),
     })
     human.KeyJoints(45.2, {
-        'right_shoulder': (55.139, -3.717, -12.751), 'right_elbow': (37.479, 42.527),
-        'right_wrist': (12.326, -17.984),
+        'right_shoulder': (55.04, 2.084, 1.773), 'right_elbow': (43.288, 55.862),
+        'right_wrist': (2.069, -29.624),
     })
     human.KeyJoints(45.3, {
-        'right_shoulder': (58.997, 2.14, 9.806), 'right_elbow': (27.733, 19.842),
-        'right_wrist': (0.402, -16.236),
+        'right_shoulder': (58.642, 7.164, 9.051), 'right_elbow': (52.528, 80.0),
+        'right_wrist': (21.387, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(45.4, {
-        'right_shoulder': (55.942, 1.887, 3.986), 'right_elbow': (37.713, 40.29),
-        'right_wrist': (0.04, -25.699),
+        'right_shoulder': (57.614, 5.868, 6.274), 'right_elbow': (57.852, 80.0),
+        'right_wrist': (32.788, -30.0),
     })
     human.KeyJoints(45.5, {
-        'right_shoulder': (56.841, 5.71, 6.062), 'right_elbow': (51.19, 79.316),
-        'right_wrist': (13.682, -30.0),
+        'right_shoulder': (49.407, -6.419, -14.565), 'right_elbow': (56.842, 61.103),
+        'right_wrist': (20.436, -27.557),
     })
     human.KeyJoints(45.6, {
-        'right_shoulder': (59.806, 7.23, 9.154), 'right_elbow': (53.193, 80.0),
-        'right_wrist': (28.594, -30.0),
-    })
-    human.KeyJoints(45.7, {
-        'right_shoulder': (53.679, 1.698, -1.148), 'right_elbow': (62.585, 79.991),
-        'right_wrist': (33.828, -30.0),
-    })
-    human.KeyJoints(45.8, {
-        'right_shoulder': (49.352, -6.402, -14.451), 'right_elbow': (57.242, 61.628),
-        'right_wrist': (20.67, -27.764),
-    })
-    human.KeyJoints(45.9, {
-        'right_shoulder': (57.335, -1.793, -8.163), 'right_elbow': (31.674, 36.655),
-        'right_wrist': (9.425, -15.931),
+        'right_shoulder': (57.709, -1.382, -6.799), 'right_elbow': (30.703, 35.262),
+        'right_wrist': (8.695, -15.753),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(45.7, {
+        'right_shoulder': (59.0, 2.412, 11.364), 'right_elbow': (27.744, 18.467),
+        'right_wrist': (-0.387, -16.411),
+    })
+    human.KeyJoints(45.8, {
+        'right_shoulder': (56.195, 1.8, 4.209), 'right_elbow': (36.653, 38.067),
+        'right_wrist': (-0.148, -24.678),
+    })
+    human.KeyJoints(45.9, {
+        'right_shoulder': (55.502, 3.264, 1.473), 'right_elbow': (48.829, 74.668),
+        'right_wrist': (8.066, -30.0),
+    })
     human.KeyJoints(46.0, {
-        'right_shoulder': (58.984, 2.4, 11.293), 'right_elbow': (27.782, 18.582),
-        'right_wrist': (-0.389, -16.444),
+        'right_shoulder': (59.512, 7.347, 9.437), 'right_elbow': (52.916, 80.0),
+        'right_wrist': (25.987, -30.0),
     })
     human.KeyJoints(46.1, {
-        'right_shoulder': (55.965, 1.878, 3.986), 'right_elbow': (37.643, 40.119),
-        'right_wrist': (0.01, -25.61),
+        'right_shoulder': (55.397, 3.624, 2.051), 'right_elbow': (60.638, 80.0),
+        'right_wrist': (33.515, -30.0),
     })
     human.KeyJoints(46.2, {
-        'right_shoulder': (55.198, 2.609, 0.755), 'right_elbow': (47.625, 71.355),
-        'right_wrist': (6.211, -30.0),
+        'right_shoulder': (50.374, -7.093, -15.233), 'right_elbow': (51.441, 52.253),
+        'right_wrist': (16.178, -27.356),
     })
     human.KeyJoints(46.3, {
-        'right_shoulder': (58.834, 7.222, 9.171), 'right_elbow': (52.618, 80.0),
-        'right_wrist': (22.403, -30.0),
-    })
-    human.KeyJoints(46.4, {
-        'right_shoulder': (56.889, 5.127, 4.816), 'right_elbow': (58.752, 80.0),
-        'right_wrist': (33.107, -30.0),
-    })
-    human.KeyJoints(46.5, {
-        'right_shoulder': (49.648, -7.246, -15.299), 'right_elbow': (54.15, 55.339),
-        'right_wrist': (17.513, -28.532),
-    })
-    human.KeyJoints(46.6, {
-        'right_shoulder': (56.869, -0.318, -0.048), 'right_elbow': (32.756, 28.567),
-        'right_wrist': (4.485, -20.275),
+        'right_shoulder': (56.919, -0.11, 0.811), 'right_elbow': (32.637, 27.751),
+        'right_wrist': (4.043, -20.298),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=46.647203, duration=0.072)
-    human.KeyJoints(46.7, {
+    human.Grasp('right_hand', 'open', start=46.347019, duration=0.072184)
+    human.KeyJoints(46.4, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.719203, duration=0.293772)
-    human.KeyJoints(46.8, {'neck': (23.902, -1.671, -10.227)})
-    human.KeyJoints(46.9, {'neck': (23.194, -3.393, -23.864)})
+    human.LookAt((0.0, 120.0, 110.0), start=46.419203, duration=0.293772)
+    human.KeyJoints(46.5, {'neck': (23.902, -1.671, -10.227)})
+    human.KeyJoints(46.6, {'neck': (23.194, -3.393, -23.864)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
-    human.KeyJoints(47.0, {
+    human.KeyJoints(46.7, {
         'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=47.012974, duration=0.836663)
-    human.KeyJoints(47.1, {
+    human.LookAt((0.0, 120.0, 110.0), start=46.712974, duration=0.836663)
+    human.KeyJoints(46.8, {
         'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.538, 2.746, 10.535),
         'right_elbow': (33.443, 18.5), 'right_wrist': (-1.452, -21.083),
         'left_shoulder': (10.301, 4.909, 11.547), 'left_elbow': (34.041, 17.211),
         'left_wrist': (0.036, -0.141),
     })
-    human.KeyJoints(47.2, {
+    human.KeyJoints(46.9, {
         'right_shoulder': (53.831, 5.452, 8.907), 'right_elbow': (39.378, 19.157),
         'right_wrist': (-2.978, -20.806), 'left_shoulder': (17.317, 1.53, 11.91),
         'left_elbow': (32.662, 17.302), 'left_wrist': (0.184, -0.721),
     })
-    human.KeyJoints(47.3, {
+    human.KeyJoints(47.0, {
         'spine_lumbar': (7.16, -13.866, 9.58), 'spine_thoracic': (-8.454, -4.443, 9.147),
         'right_clavicle': (2.731, 7.904), 'right_shoulder': (48.985, 10.378, 5.925),
         'right_elbow': (50.016, 20.333), 'right_wrist': (-5.719, -20.311),
         'left_clavicle': (-0.008, 0.016), 'left_shoulder': (29.985, -4.605, 12.569),
         'left_elbow': (30.19, 17.466), 'left_wrist': (0.451, -1.761),
     })
-    human.KeyJoints(47.4, {
+    human.KeyJoints(47.1, {
         'spine_lumbar': (7.351, -13.795, 9.533), 'spine_thoracic': (-8.572, -4.476, 9.095),
         'right_clavicle': (2.814, 7.932), 'right_shoulder': (43.041, 16.795, 1.964),
         'right_elbow': (63.186, 21.792), 'right_wrist': (-9.138, -19.698),
         'left_clavicle': (-0.054, 0.096), 'left_shoulder': (46.099, -12.507, 13.414),
         'left_elbow': (27.144, 17.67),
     })
-    human.KeyJoints(47.5, {
+    human.KeyJoints(47.2, {
         'spine_lumbar': (8.273, -13.515, 9.325), 'spine_thoracic': (-9.146, -4.645, 8.868),
         'right_clavicle': (3.215, 8.087), 'right_shoulder': (37.675, 23.639, -2.388),
         'right_elbow': (75.713, 23.185), 'right_wrist': (-12.444, -19.114),
         'left_clavicle': (-0.281, 0.474), 'left_shoulder': (62.578, -20.475, 14.231),
         'left_elbow': (24.313, 17.871), 'left_wrist': (1.089, -4.246),
     })
-    human.KeyJoints(47.6, {
+    human.KeyJoints(47.3, {
         'spine_lumbar': (11.067, -12.799, 8.735), 'spine_thoracic': (-10.907, -5.193, 8.219),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
         'right_clavicle': (4.427, 8.596), 'right_shoulder': (34.695, 29.71, -6.322),
@@ -2314,350 +2302,349 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(47.7, {
+    human.KeyJoints(47.4, {
         'spine_lumbar': (15.079, -11.875, 7.906), 'spine_thoracic': (-13.456, -6.008, 7.31),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
-        'right_clavicle': (6.163, 9.359), 'right_shoulder': (34.342, 33.723, -8.895),
-        'right_elbow': (89.232, 24.725), 'right_wrist': (-16.126, -18.396),
-        'left_clavicle': (-1.998, 3.222), 'left_shoulder': (85.821, -28.561, 14.7),
-        'left_elbow': (21.783, 18.131), 'left_wrist': (1.0, -5.384),
+        'right_clavicle': (6.163, 9.359), 'right_shoulder': (34.34, 33.723, -8.896),
+        'right_elbow': (89.235, 24.725), 'right_wrist': (-16.127, -18.396),
+        'left_clavicle': (-1.998, 3.222), 'left_shoulder': (85.827, -28.562, 14.7),
+        'left_elbow': (21.773, 18.131), 'left_wrist': (1.0, -5.385),
     })
-    human.KeyJoints(47.8, {
+    human.KeyJoints(47.5, {
         'spine_lumbar': (16.919, -11.464, 7.528), 'spine_thoracic': (-14.628, -6.385, 6.895),
         'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
-        'right_clavicle': (6.959, 9.713), 'right_shoulder': (34.493, 35.167, -9.809),
-        'right_elbow': (90.627, 24.89), 'right_wrist': (-16.515, -18.3),
-        'left_clavicle': (-2.466, 3.964), 'left_shoulder': (89.145, -29.127, 14.646),
-        'left_elbow': (21.625, 18.167), 'left_wrist': (0.9, -5.469),
+        'right_clavicle': (6.959, 9.713), 'right_shoulder': (34.402, 35.154, -9.83),
+        'right_elbow': (90.756, 24.89), 'right_wrist': (-16.545, -18.287),
+        'left_clavicle': (-2.466, 3.964), 'left_shoulder': (89.375, -29.172, 14.643),
+        'left_elbow': (21.231, 18.167), 'left_wrist': (0.92, -5.508),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=47.849638, duration=0.072)
+    human.Grasp('left_hand', 'close', start=47.549638, duration=0.072)
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=47.849638, duration=0.072)
-    human.KeyRoot(47.9, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(47.9, {
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
-        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+    human.Grasp('right_hand', 'close', start=47.549638, duration=0.072)
+    human.KeyRoot(47.6, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(47.6, {
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
+        'left_shoulder': (89.57, -29.205, 14.639), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.64, 0.0, 19.995), start=47.921638, duration=5.147368)
+    human.Walk((139.64, 0.0, 19.995), start=47.621638, duration=5.147368)
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
-    human.KeyRoot(48.0, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
-    human.KeyJoints(48.0, {
+    human.KeyRoot(47.7, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
+    human.KeyJoints(47.7, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
-        'head': (5.153, -0.373), 'right_shoulder': (34.395, 35.22, -9.877),
+        'head': (5.153, -0.373), 'right_elbow': (90.842, 24.897),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
-    human.KeyRoot(48.1, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
-    human.KeyJoints(48.1, {
-        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167),
+    human.KeyRoot(47.8, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
+    human.KeyJoints(47.8, {
+        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'left_elbow': (21.157, 18.169),
         'right_hip': (7.244, -0.536, -2.481), 'right_knee': (14.727,),
         'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517), 'left_knee': (18.046,),
         'left_ankle': (7.602, 0.86),
     })
-    human.KeyRoot(48.2, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
-    human.KeyJoints(48.2, {
+    human.KeyRoot(47.9, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
+    human.KeyJoints(47.9, {
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
-        'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
-        'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
-        'left_ankle': (16.48, 1.57),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_hip': (6.792, -0.973, -5.207),
+        'right_knee': (14.607,), 'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279),
+        'left_knee': (34.508,), 'left_ankle': (16.48, 1.57),
     })
-    human.KeyRoot(48.3, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
-    human.KeyJoints(48.3, {
+    human.KeyRoot(48.0, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
+    human.KeyJoints(48.0, {
         'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
         'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
-    human.KeyRoot(48.4, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
-    human.KeyJoints(48.4, {
+    human.KeyRoot(48.1, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
+    human.KeyJoints(48.1, {
         'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
         'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
-    human.KeyRoot(48.5, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
-    human.KeyJoints(48.5, {
+    human.KeyRoot(48.2, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
+    human.KeyJoints(48.2, {
         'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
         'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
-    human.KeyRoot(48.6, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
-    human.KeyJoints(48.6, {
+    human.KeyRoot(48.3, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
+    human.KeyJoints(48.3, {
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
         'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
         'left_ankle': (7.073, -0.351),
     })
-    human.KeyRoot(48.7, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
-    human.KeyJoints(48.7, {
+    human.KeyRoot(48.4, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
+    human.KeyJoints(48.4, {
         'spine_thoracic': (-14.684, -6.403, 6.875), 'right_hip': (18.001, 7.349, -19.807),
         'right_knee': (39.588,), 'right_ankle': (10.474, 0.616),
         'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
-    human.KeyRoot(48.8, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
-    human.KeyJoints(48.8, {
+    human.KeyRoot(48.5, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
+    human.KeyJoints(48.5, {
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
         'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
         'left_ankle': (6.81, -1.859),
     })
-    human.KeyRoot(48.9, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
-    human.KeyJoints(48.9, {
+    human.KeyRoot(48.6, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
+    human.KeyJoints(48.6, {
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
         'left_ankle': (6.744, -2.356),
     })
-    human.KeyRoot(49.0, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(48.7, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
+    human.KeyJoints(48.7, {
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
-    human.KeyRoot(49.1, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(48.8, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
+    human.KeyJoints(48.8, {
         'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
         'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
     })
-    human.KeyRoot(49.2, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
-    human.KeyJoints(49.2, {
-        'neck': (0.0, 0.0, 0.0), 'right_wrist': (-16.568, -18.281),
-        'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
+    human.KeyRoot(48.9, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
+    human.KeyJoints(48.9, {
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
-    human.KeyRoot(49.3, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(49.0, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
         'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
-    human.KeyRoot(49.4, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(49.1, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'right_hip': (5.53, -2.614, 8.969), 'right_knee': (14.358,), 'right_ankle': (8.487, -1.709),
         'left_hip': (20.827, -7.322, 18.991), 'left_knee': (44.671,), 'left_ankle': (15.335, 0.192),
     })
-    human.KeyRoot(49.5, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(49.2, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'right_hip': (5.957, -2.518, 3.333), 'right_knee': (14.176,),
         'right_ankle': (8.079, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
         'left_ankle': (19.173, 0.476),
     })
-    human.KeyRoot(49.6, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(49.3, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (7.144, -2.118, -2.408), 'right_knee': (15.599,),
         'right_ankle': (7.916, -2.399), 'left_hip': (20.072, 2.892, -4.796), 'left_knee': (43.769,),
         'left_ankle': (19.146, 1.115),
     })
-    human.KeyRoot(49.7, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(49.4, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (10.054, -0.361, -8.514), 'right_ankle': (8.058, -1.839),
         'left_hip': (14.609, 5.693, -16.716), 'left_knee': (33.636,), 'left_ankle': (18.496, 1.179),
     })
-    human.KeyRoot(49.8, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(49.5, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (12.67, 2.368, -13.957), 'right_knee': (24.565,),
         'right_ankle': (8.035, -0.791), 'left_hip': (7.298, 2.987, -20.992), 'left_knee': (16.089,),
         'left_ankle': (8.219, 0.189),
     })
-    human.KeyRoot(49.9, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(49.6, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (13.594, 4.636, -17.865), 'right_knee': (27.294,),
         'right_ankle': (8.214, 0.154), 'left_hip': (7.668, 1.36, -16.942), 'left_knee': (14.683,),
         'left_ankle': (6.955, -0.938),
     })
-    human.KeyRoot(50.0, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(49.7, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (16.985, 7.166, -18.852), 'right_knee': (36.377,),
         'right_ankle': (13.606, 1.037), 'left_hip': (7.673, 0.244, -13.991),
         'left_ankle': (6.954, -1.615),
     })
-    human.KeyRoot(50.1, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(49.8, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (20.652, 7.363, -14.073), 'right_knee': (43.969,),
         'right_ankle': (19.0, 1.726), 'left_hip': (7.312, -0.626, -11.517), 'left_knee': (14.284,),
         'left_ankle': (7.241, -2.062),
     })
-    human.KeyRoot(50.2, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(49.9, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,), 'right_ankle': (19.0, 1.998),
         'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,), 'left_ankle': (8.41, -2.185),
     })
-    human.KeyRoot(50.3, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(50.0, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (18.203, 2.104, -1.428), 'right_knee': (37.03,),
         'right_ankle': (18.772, 1.536), 'left_hip': (21.645, 0.507, -5.964), 'left_knee': (41.658,),
         'left_ankle': (5.057, -1.788),
     })
-    human.KeyRoot(50.4, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(50.1, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'right_hip': (10.489, 0.475, 1.046), 'right_knee': (21.215,),
         'right_ankle': (10.735, 0.652), 'left_hip': (31.616, 0.521, -2.349), 'left_knee': (56.025,),
         'left_ankle': (-6.238, -0.915),
     })
-    human.KeyRoot(50.5, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(50.2, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (6.762, -0.073, 0.043), 'right_knee': (15.114,),
         'right_ankle': (8.352, -0.071), 'left_hip': (37.764, 0.033, 0.115), 'left_knee': (62.937,),
         'left_ankle': (-18.356, 0.133),
     })
-    human.KeyRoot(50.6, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(50.3, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (6.289, -0.476, -0.033), 'right_knee': (17.521,),
         'right_ankle': (11.232, -0.479), 'left_hip': (39.479, 0.063, 0.982), 'left_knee': (67.326,),
         'left_ankle': (-19.173, 0.984),
     })
-    human.KeyRoot(50.7, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(50.4, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (3.738, -1.06, -0.06), 'right_knee': (17.98,), 'right_ankle': (14.243, -1.062),
         'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,), 'left_ankle': (-6.665, 1.712),
     })
-    human.KeyRoot(50.8, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(50.5, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (-2.492, -1.722, 0.072), 'right_knee': (12.116,),
         'right_ankle': (14.514, -1.724), 'left_hip': (38.651, 1.322, 1.651), 'left_knee': (54.096,),
         'left_ankle': (2.648, 2.115),
     })
-    human.KeyRoot(50.9, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(50.6, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (6.854, -2.221, -0.796), 'right_knee': (38.675,),
         'right_ankle': (18.976, -2.36), 'left_hip': (33.592, 2.032, 1.353), 'left_knee': (34.152,),
         'left_ankle': (0.401, 2.441),
     })
-    human.KeyRoot(51.0, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(50.7, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (6.532, -1.774, -1.07), 'right_knee': (49.055,),
         'right_ankle': (17.958, -2.072), 'left_hip': (29.704, 1.75, 0.992), 'left_knee': (22.857,),
         'left_ankle': (-6.78, 2.012),
     })
-    human.KeyRoot(51.1, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(50.8, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (6.323, -0.762, -0.885), 'right_knee': (57.992,),
         'right_ankle': (8.752, -1.168), 'left_hip': (21.758, 0.922, 0.366), 'left_knee': (11.746,),
         'left_ankle': (-9.969, 0.992),
     })
-    human.KeyRoot(51.2, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(50.9, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (3.747, -0.027, -0.048), 'right_knee': (58.809,),
         'right_ankle': (-1.574, -0.055), 'left_hip': (21.408, 0.039, 0.015), 'left_knee': (22.227,),
         'left_ankle': (0.82, 0.042),
     })
-    human.KeyRoot(51.3, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.KeyRoot(51.0, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (0.888, 0.462, 0.77), 'right_knee': (56.572,), 'right_ankle': (-2.401, 0.898),
         'left_hip': (18.098, -0.653, -0.214), 'left_knee': (22.755,), 'left_ankle': (4.659, -0.687),
     })
-    human.KeyRoot(51.4, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.4, {
+    human.KeyRoot(51.1, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (14.582, 1.105, 1.343), 'right_knee': (65.608,),
         'right_ankle': (15.104, 1.739), 'left_hip': (13.855, -1.361, -0.336),
         'left_knee': (19.689,), 'left_ankle': (5.838, -1.401),
     })
-    human.KeyRoot(51.5, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.5, {
+    human.KeyRoot(51.2, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'right_hip': (29.19, 1.805, 1.394), 'right_knee': (56.405,), 'right_ankle': (18.776, 2.281),
         'left_hip': (13.268, -1.958, -0.516), 'left_knee': (25.542,),
         'left_ankle': (10.794, -2.024),
     })
-    human.KeyRoot(51.6, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.6, {
+    human.KeyRoot(51.3, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'right_hip': (33.603, 1.905, 1.262), 'right_knee': (35.639,), 'right_ankle': (2.157, 2.285),
         'left_hip': (18.012, -1.955, -1.246), 'left_knee': (48.621,),
         'left_ankle': (16.122, -2.319),
     })
-    human.KeyRoot(51.7, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.7, {
+    human.KeyRoot(51.4, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.4, {
         'right_hip': (26.231, 1.322, 0.65), 'right_knee': (13.474,),
         'right_ankle': (-12.669, 1.473), 'left_hip': (13.871, -1.133, -1.259),
         'left_knee': (61.386,), 'left_ankle': (13.373, -1.694),
     })
-    human.KeyRoot(51.8, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.8, {
+    human.KeyRoot(51.5, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.5, {
         'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
         'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
     })
-    human.KeyRoot(51.9, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
-    human.KeyJoints(51.9, {
+    human.KeyRoot(51.6, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
+    human.KeyJoints(51.6, {
         'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
         'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
-    human.KeyRoot(52.0, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
-    human.KeyJoints(52.0, {
+    human.KeyRoot(51.7, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
+    human.KeyJoints(51.7, {
         'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
         'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
     })
-    human.KeyRoot(52.1, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
-    human.KeyJoints(52.1, {
+    human.KeyRoot(51.8, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
+    human.KeyJoints(51.8, {
         'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
         'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
         'left_ankle': (18.697, 1.419),
     })
-    human.KeyRoot(52.2, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
-    human.KeyJoints(52.2, {
+    human.KeyRoot(51.9, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
+    human.KeyJoints(51.9, {
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
-    human.KeyRoot(52.3, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
-    human.KeyJoints(52.3, {
+    human.KeyRoot(52.0, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
+    human.KeyJoints(52.0, {
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
-    human.KeyRoot(52.4, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
-    human.KeyJoints(52.4, {
+    human.KeyRoot(52.1, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
+    human.KeyJoints(52.1, {
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
-    human.KeyRoot(52.5, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {
+    human.KeyRoot(52.2, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.2, {
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
         'left_ankle': (1.594, 2.233),
     })
-    human.KeyRoot(52.6, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.6, {
+    human.KeyRoot(52.3, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.3, {
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
         'left_ankle': (-0.141, 0.805),
     })
-    human.KeyRoot(52.7, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.7, {
+    human.KeyRoot(52.4, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.4, {
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
         'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
         'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
     })
-    human.KeyRoot(52.8, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.8, {
+    human.KeyRoot(52.5, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.5, {
         'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
         'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
-    human.KeyRoot(52.9, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.9, {
+    human.KeyRoot(52.6, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.6, {
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
-    human.KeyRoot(53.0, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.0, {
+    human.KeyRoot(52.7, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.7, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
         'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=53.069006, duration=0.32772)
-    human.KeyRoot(53.1, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.1, {
+    human.LookAt((160.0, 90.0, 20.0), start=52.769006, duration=0.32772)
+    human.KeyRoot(52.8, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.8, {
         'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
         'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
         'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
-    human.KeyJoints(53.2, {
+    human.KeyJoints(52.9, {
         'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
-    human.KeyJoints(53.3, {
+    human.KeyJoints(53.0, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -2666,60 +2653,63 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
-    human.KeyJoints(53.4, {
+    human.LookAt((160.0, 90.0, 20.0), start=53.096726, duration=0.633339)
+    human.KeyJoints(53.1, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.001, 24.925),
-        'right_wrist': (-16.585, -18.209), 'left_shoulder': (88.17, -28.972, 15.116),
-        'left_elbow': (22.766, 17.988), 'left_wrist': (-0.043, -5.344),
+        'right_shoulder': (33.877, 34.973, -9.753), 'right_elbow': (91.012, 24.925),
+        'right_wrist': (-16.588, -18.209), 'left_shoulder': (88.195, -28.975, 15.118),
+        'left_elbow': (22.721, 17.987), 'left_wrist': (-0.054, -5.342),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
+    human.KeyJoints(53.2, {
+        'right_shoulder': (27.627, 32.32, -8.72), 'right_elbow': (93.584, 25.223),
+        'right_wrist': (-17.035, -17.408), 'left_shoulder': (75.688, -26.721, 20.132),
+        'left_elbow': (35.963, 16.067), 'left_wrist': (-10.282, -3.749),
+    })
+    human.KeyJoints(53.3, {
+        'right_shoulder': (11.316, 26.206, -7.111), 'right_elbow': (101.096, 25.841),
+        'right_wrist': (-18.678, -15.662), 'left_shoulder': (53.704, -21.759, 30.219),
+        'left_elbow': (57.088, 12.074), 'left_wrist': (-30.787, -1.334),
+    })
+    human.KeyJoints(53.4, {
+        'right_shoulder': (-11.064, 17.004, -3.446), 'right_elbow': (109.957, 26.529),
+        'right_wrist': (-20.572, -13.677), 'left_shoulder': (29.491, -15.175, 40.957),
+        'left_elbow': (78.724, 7.631), 'left_wrist': (-52.903, 0.911),
+    })
     human.KeyJoints(53.5, {
-        'right_shoulder': (27.639, 32.324, -8.721), 'right_elbow': (93.569, 25.223),
-        'right_wrist': (-17.032, -17.409), 'left_shoulder': (75.654, -26.716, 20.134),
-        'left_elbow': (36.017, 16.066), 'left_wrist': (-10.295, -3.741),
-    })
-    human.KeyJoints(53.6, {
-        'right_shoulder': (11.315, 26.209, -7.116), 'right_elbow': (101.099, 25.842),
-        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.757, 30.226),
-        'left_elbow': (57.105, 12.072), 'left_wrist': (-30.801, -1.332),
-    })
-    human.KeyJoints(53.7, {
-        'right_shoulder': (-11.077, 17.004, -3.453), 'right_elbow': (109.972, 26.53),
-        'right_wrist': (-20.576, -13.675), 'left_shoulder': (29.481, -15.175, 40.966),
-        'left_elbow': (78.739, 7.627), 'left_wrist': (-52.923, 0.912),
-    })
-    human.KeyJoints(53.8, {
-        'right_shoulder': (-29.508, 7.035, 3.903), 'right_elbow': (112.29, 26.906),
-        'right_wrist': (-20.715, -12.808), 'left_shoulder': (9.251, -6.256, 49.537),
-        'left_elbow': (94.695, 3.929), 'left_wrist': (-68.979, 2.456),
+        'right_shoulder': (-29.477, 7.037, 3.91), 'right_elbow': (112.269, 26.903),
+        'right_wrist': (-20.707, -12.812), 'left_shoulder': (9.24, -6.255, 49.492),
+        'left_elbow': (94.684, 3.962), 'left_wrist': (-68.916, 2.473),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(53.9, {
-        'right_shoulder': (-37.765, 0.311, 11.585), 'right_elbow': (110.53, 26.669),
-        'right_wrist': (-19.401, -12.719), 'left_shoulder': (0.497, 9.024, 57.122),
-        'left_elbow': (103.608, 5.61), 'left_wrist': (-70.0, 4.728),
+    human.KeyJoints(53.6, {
+        'right_shoulder': (-37.767, 0.321, 11.592), 'right_elbow': (110.546, 26.668),
+        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.486, 9.016, 57.09),
+        'left_elbow': (103.623, 5.619), 'left_wrist': (-70.0, 4.724),
     })
-    human.KeyJoints(54.0, {
-        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.535),
-        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-2.265, 13.728, 57.742),
-        'left_elbow': (104.423, 10.561), 'left_wrist': (-70.0, 10.004),
+    human.KeyJoints(53.7, {
+        'right_shoulder': (-40.293, -1.555, 14.427), 'right_elbow': (110.616, 26.535),
+        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-1.58, 14.477, 59.192),
+        'left_elbow': (105.854, 8.16), 'left_wrist': (-69.987, 7.3),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
+    human.Grasp('left_hand', 'open', start=53.730065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
-    human.KeyJoints(54.1, {'left_shoulder': (-1.023, 15.115, 59.904), 'left_wrist': (-70.0, 8.226)})
-    human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(54.102065, {
+    human.Grasp('right_hand', 'open', start=53.730065, duration=0.072)
+    human.KeyJoints(53.8, {
+        'left_shoulder': (-0.994, 15.174, 59.97), 'left_elbow': (105.521, 8.889),
+        'left_wrist': (-70.0, 7.942),
+    })
+    human.KeyRoot(53.802065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.802065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (-40.328, -1.598, 14.492), 'right_elbow': (110.63, 26.533),
-        'right_wrist': (-18.934, -12.504), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.811, 15.328, 60.219), 'left_elbow': (105.421, 9.029),
-        'left_wrist': (-70.0, 8.075), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
+        'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (-0.852, 15.313, 60.145), 'left_elbow': (105.447, 9.018),
+        'left_wrist': (-70.0, 8.07), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

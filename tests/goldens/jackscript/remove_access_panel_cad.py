@@ -152,14 +152,14 @@ def remove_access_panel_cad():
     human.KeyJoints(2.4, {
         'spine_lumbar': (5.297, 0.707, 1.239), 'spine_thoracic': (-1.433, -1.403, 1.227),
         'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (2.024, 0.686),
-        'right_shoulder': (88.233, 10.136, 0.119), 'right_elbow': (33.922, 10.309),
-        'right_wrist': (-1.481, -29.192),
+        'right_shoulder': (88.24, 10.136, 0.119), 'right_elbow': (33.91, 10.309),
+        'right_wrist': (-1.48, -29.192),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.008, 0.802, 1.404), 'spine_thoracic': (-1.636, -1.595, 1.391),
         'neck': (-0.238, -0.596, -24.912), 'head': (-0.364, -0.001),
-        'right_clavicle': (2.301, 0.776), 'right_shoulder': (90.754, 10.587, -0.359),
-        'right_elbow': (33.725, 10.079), 'right_wrist': (-1.591, -29.967),
+        'right_clavicle': (2.301, 0.776), 'right_shoulder': (90.812, 10.588, -0.361),
+        'right_elbow': (33.631, 10.079), 'right_wrist': (-1.584, -29.967),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
@@ -637,8 +637,8 @@ def remove_access_panel_cad():
     human.KeyJoints(13.3, {
         'spine_lumbar': (6.89, -13.92, 9.585), 'spine_thoracic': (-8.527, -4.496, 9.14),
         'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.788, 7.873),
-        'right_shoulder': (88.41, 7.299, 1.196), 'right_elbow': (34.346, 11.015),
-        'right_wrist': (-1.423, -29.914),
+        'right_shoulder': (88.507, 7.3, 1.193), 'right_elbow': (34.207, 11.015),
+        'right_wrist': (-1.414, -29.976),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
@@ -1292,13 +1292,13 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.1, {
-        'right_shoulder': (17.429, 31.412, -15.796), 'right_elbow': (38.919, 3.272),
-        'right_wrist': (-6.457, -3.791),
+        'right_shoulder': (17.432, 31.412, -15.795), 'right_elbow': (38.917, 3.272),
+        'right_wrist': (-6.456, -3.794),
     })
     human.KeyJoints(24.2, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'right_clavicle': (2.794, 7.882),
-        'right_shoulder': (17.513, 33.356, -16.785), 'right_elbow': (37.585, 2.811),
-        'right_wrist': (-6.586, -5.14),
+        'right_shoulder': (17.566, 33.355, -16.771), 'right_elbow': (37.537, 2.811),
+        'right_wrist': (-6.577, -5.205),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.216071, duration=0.072)
@@ -1763,14 +1763,14 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'right_shoulder': (54.183, 2.351, 10.844), 'right_elbow': (33.499, 18.164),
-        'right_wrist': (-1.157, -20.178),
+        'right_shoulder': (54.187, 2.35, 10.844), 'right_elbow': (33.494, 18.164),
+        'right_wrist': (-1.156, -20.183),
     })
     human.KeyJoints(35.0, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
         'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.794, 7.882),
-        'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
-        'right_wrist': (-1.15, -21.055),
+        'right_shoulder': (56.4, 2.054, 11.18), 'right_elbow': (33.001, 18.45),
+        'right_wrist': (-1.137, -21.193),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
@@ -2238,18 +2238,17 @@ def remove_access_panel_cad():
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
         'right_wrist': (-1.859, -18.104),
     })
-    human.KeyJoints(45.9, {
-        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
-    })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
     human.KeyJoints(46.0, {
-        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
-        'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
+        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307), 'right_elbow': (33.09, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
-    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
+    human.KeyJoints(46.1, {
+        'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321),
+        'right_shoulder': (74.319, 23.529, 2.036),
+    })
     human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
     human.KeyJoints(46.3, {
         'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
@@ -2310,8 +2309,8 @@ def remove_access_panel_cad():
         'spine_lumbar': (16.336, -11.647, 7.631), 'spine_thoracic': (-14.345, -6.325, 6.982),
         'right_clavicle': (6.785, 9.678), 'right_shoulder': (32.723, 37.229, -9.557),
         'right_elbow': (90.674, 22.828), 'right_wrist': (-12.513, -14.599),
-        'left_clavicle': (-2.339, 3.868), 'left_shoulder': (89.156, -29.383, 14.762),
-        'left_elbow': (20.636, 18.172), 'left_wrist': (0.955, -5.547),
+        'left_clavicle': (-2.339, 3.868), 'left_shoulder': (89.309, -29.392, 14.756),
+        'left_elbow': (20.405, 18.172), 'left_wrist': (0.964, -5.567),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
@@ -2644,9 +2643,9 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
-        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.775, 22.837),
-        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.719, -29.213, 14.723),
-        'left_elbow': (20.479, 18.166), 'left_wrist': (0.904, -5.537),
+        'right_shoulder': (32.834, 37.353, -9.633), 'right_elbow': (90.776, 22.837),
+        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.717, -29.213, 14.723),
+        'left_elbow': (20.484, 18.166), 'left_wrist': (0.904, -5.536),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -2654,36 +2653,36 @@ def remove_access_panel_cad():
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.748, 35.989, -9.049), 'right_elbow': (91.373, 22.868),
-        'right_wrist': (-12.54, -14.334), 'left_shoulder': (83.084, -28.036, 15.61),
-        'left_elbow': (27.221, 17.668), 'left_wrist': (0.209, -4.18),
+        'right_shoulder': (29.743, 35.987, -9.048), 'right_elbow': (91.379, 22.868),
+        'right_wrist': (-12.541, -14.333), 'left_shoulder': (83.113, -28.04, 15.609),
+        'left_elbow': (27.174, 17.668), 'left_wrist': (0.211, -4.184),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (19.97, 31.61, -7.109), 'right_elbow': (93.772, 22.959),
-        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.642, -24.748, 18.136),
-        'left_elbow': (43.254, 16.182), 'left_wrist': (-1.722, -0.547),
+        'right_shoulder': (19.975, 31.61, -7.106), 'right_elbow': (93.772, 22.959),
+        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.659, -24.751, 18.134),
+        'left_elbow': (43.235, 16.183), 'left_wrist': (-1.721, -0.552),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (5.321, 24.375, -3.194), 'right_elbow': (97.715, 23.079),
-        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.503, -19.649, 21.337),
-        'left_elbow': (62.42, 14.158), 'left_wrist': (-4.471, 3.877),
+        'right_shoulder': (5.318, 24.374, -3.191), 'right_elbow': (97.717, 23.079),
+        'right_wrist': (-12.816, -12.186), 'left_shoulder': (42.522, -19.647, 21.332),
+        'left_elbow': (62.398, 14.16), 'left_wrist': (-4.47, 3.872),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.226, 15.952, 2.926), 'right_elbow': (99.624, 23.159),
-        'right_wrist': (-12.531, -11.14), 'left_shoulder': (20.919, -12.952, 23.562),
-        'left_elbow': (78.036, 12.531), 'left_wrist': (-7.449, 7.525),
+        'right_shoulder': (-8.205, 15.954, 2.932), 'right_elbow': (99.614, 23.158),
+        'right_wrist': (-12.527, -11.142), 'left_shoulder': (20.939, -12.947, 23.551),
+        'left_elbow': (78.02, 12.535), 'left_wrist': (-7.448, 7.522),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-15.566, 9.215, 10.058), 'right_elbow': (100.11, 23.131),
-        'right_wrist': (-11.52, -10.444), 'left_shoulder': (7.028, -5.041, 23.588),
-        'left_elbow': (88.729, 11.493), 'left_wrist': (-10.751, 10.539),
+        'right_shoulder': (-15.58, 9.225, 10.055), 'right_elbow': (100.147, 23.132),
+        'right_wrist': (-11.525, -10.437), 'left_shoulder': (7.032, -5.044, 23.593),
+        'left_elbow': (88.754, 11.494), 'left_wrist': (-10.754, 10.544),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.155),
-        'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
-        'left_elbow': (95.414, 11.693), 'left_wrist': (-11.973, 12.631),
+        'right_shoulder': (-19.628, 6.877, 13.337), 'right_elbow': (103.21, 23.155),
+        'right_wrist': (-11.309, -9.624), 'left_shoulder': (0.993, -1.782, 22.888),
+        'left_elbow': (95.42, 11.698), 'left_wrist': (-11.967, 12.632),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)

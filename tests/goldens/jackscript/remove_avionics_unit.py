@@ -752,13 +752,13 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(12.3, {
-        'right_shoulder': (42.963, 2.708, 64.293), 'right_elbow': (73.146, -43.331),
-        'right_wrist': (38.939, -29.716), 'left_shoulder': (34.86, 30.437, 60.687),
+        'right_shoulder': (42.974, 2.726, 64.283), 'right_elbow': (73.132, -43.331),
+        'right_wrist': (38.935, -29.718), 'left_shoulder': (34.86, 30.437, 60.687),
         'left_elbow': (92.709, -44.311), 'left_wrist': (55.038, -28.13),
     })
     human.KeyJoints(12.4, {
-        'right_shoulder': (43.268, 1.055, 65.506), 'right_elbow': (73.272, -43.699),
-        'right_wrist': (39.044, -29.997), 'left_shoulder': (34.936, 29.031, 62.041),
+        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
+        'right_wrist': (39.035, -30.0), 'left_shoulder': (34.936, 29.031, 62.041),
         'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand

@@ -443,8 +443,8 @@ def replace_fuel_filter():
         'spine_lumbar': (59.821, 4.691, 3.756), 'spine_thoracic': (-14.937, 6.102, 14.119),
         'neck': (35.0, 32.785, -0.758), 'right_shoulder': (28.994, 0.774, 11.256),
         'right_elbow': (56.752, 80.0), 'right_wrist': (-9.374, 1.73),
-        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.815, 5.859, 8.603),
-        'left_elbow': (62.107, 17.294), 'left_wrist': (-3.41, 6.275),
+        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.794, 5.863, 8.602),
+        'left_elbow': (62.139, 17.294), 'left_wrist': (-3.414, 6.284),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
@@ -488,8 +488,8 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'right_shoulder': (29.315, 39.657, -18.628), 'right_elbow': (18.481, 34.83),
-        'right_wrist': (-52.461, 11.213),
+        'right_shoulder': (29.408, 39.667, -18.61), 'right_elbow': (18.392, 34.83),
+        'right_wrist': (-52.331, 11.19),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
@@ -555,8 +555,8 @@ def replace_fuel_filter():
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
         'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
-        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.821, 12.987, 20.099),
-        'left_elbow': (12.753, 51.643), 'left_wrist': (-46.123, 15.05),
+        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.912, 12.957, 20.101),
+        'left_elbow': (12.614, 51.643), 'left_wrist': (-45.957, 15.003),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
@@ -605,12 +605,12 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-40.838, 38.551, -71.465), 'left_elbow': (92.598, 31.625),
-        'left_wrist': (-66.603, 9.03),
+        'left_shoulder': (-40.838, 38.55, -71.465), 'left_elbow': (92.599, 31.625),
+        'left_wrist': (-66.604, 9.03),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-41.408, 39.143, -75.483), 'left_elbow': (95.239, 31.469),
-        'left_wrist': (-67.926, 8.984),
+        'left_shoulder': (-41.41, 39.09, -75.502), 'left_elbow': (95.26, 31.469),
+        'left_wrist': (-67.945, 8.986),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
@@ -659,13 +659,13 @@ def replace_fuel_filter():
     human.KeyJoints(12.0, {
         'spine_lumbar': (55.373, -17.948, 5.539), 'spine_thoracic': (-12.008, 9.312, -9.764),
         'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
-        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.507, -14.907, -0.872),
-        'right_elbow': (35.004, 41.925), 'right_wrist': (-51.356, 13.561),
+        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.504, -14.908, -0.872),
+        'right_elbow': (35.008, 41.925), 'right_wrist': (-51.359, 13.562),
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (54.72, -19.053, 6.157), 'spine_thoracic': (-12.648, 9.911, -9.147),
-        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.676, -17.087, -0.131),
-        'right_elbow': (35.724, 42.211), 'right_wrist': (-51.411, 13.722),
+        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.603, -17.106, -0.128),
+        'right_elbow': (35.83, 42.211), 'right_wrist': (-51.485, 13.749),
         'left_shoulder': (-41.45, 39.188, -75.798),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand

@@ -390,65 +390,66 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
     human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=1.873581)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (39.652, 15.853, 13.221), 'spine_thoracic': (-8.228, 9.051, 20.039),
+        'spine_lumbar': (39.653, 15.853, 13.22), 'spine_thoracic': (-8.228, 9.051, 20.039),
         'neck': (34.97, 30.288, -18.996), 'head': (13.933, -11.098),
-        'right_shoulder': (33.247, 17.841, 6.06), 'right_elbow': (27.86, 80.0),
+        'right_shoulder': (33.247, 17.841, 6.061), 'right_elbow': (27.86, 80.0),
         'right_wrist': (-1.622, -2.045), 'left_clavicle': (0.0, 0.001),
-        'left_shoulder': (8.595, 5.729, 11.459),
+        'left_shoulder': (8.594, 5.729, 11.458), 'left_elbow': (34.379, 17.189),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.136, 15.622, 12.988), 'spine_thoracic': (-8.389, 8.973, 19.884),
+        'spine_lumbar': (40.18, 15.601, 12.967), 'spine_thoracic': (-8.404, 8.966, 19.87),
         'neck': (34.466, 30.364, -17.661), 'head': (14.539, -10.905),
-        'right_clavicle': (-9.681, 13.043), 'right_shoulder': (33.103, 17.43, 6.171),
-        'right_elbow': (28.691, 80.0), 'right_wrist': (-1.841, -1.976),
-        'left_clavicle': (-0.233, 0.357), 'left_shoulder': (9.118, 5.653, 11.425),
-        'left_elbow': (34.357, 17.188), 'left_wrist': (-0.007, -0.017),
+        'right_clavicle': (-9.681, 13.048), 'right_shoulder': (33.09, 17.393, 6.181),
+        'right_elbow': (28.766, 80.0), 'right_wrist': (-1.861, -1.97),
+        'left_clavicle': (-0.254, 0.39), 'left_shoulder': (8.507, 5.545, 11.105),
+        'left_elbow': (34.972, 17.188), 'left_wrist': (-0.019, -0.019),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (42.26, 14.607, 11.967), 'spine_thoracic': (-9.096, 8.631, 19.203),
+        'spine_lumbar': (42.528, 14.479, 11.838), 'spine_thoracic': (-9.185, 8.588, 19.117),
         'neck': (34.204, 31.64, -14.638), 'head': (15.0, -11.246),
-        'right_clavicle': (-9.692, 13.252), 'right_shoulder': (32.427, 15.641, 6.659),
-        'right_elbow': (32.374, 80.0), 'right_wrist': (-2.817, -1.653),
-        'left_clavicle': (-1.253, 1.923), 'left_shoulder': (11.428, 5.318, 11.274),
+        'right_clavicle': (-9.694, 13.279), 'right_shoulder': (32.336, 15.416, 6.722),
+        'right_elbow': (32.845, 80.0), 'right_wrist': (-2.943, -1.61),
+        'left_clavicle': (-1.382, 2.121), 'left_shoulder': (8.223, 4.73, 9.564),
+        'left_elbow': (37.555, 17.185),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (46.126, 12.759, 10.108), 'spine_thoracic': (-10.383, 8.009, 17.962),
-        'neck': (34.964, 33.48, -10.221), 'right_shoulder': (31.497, 12.368, 7.572),
-        'right_elbow': (38.463, 80.0), 'right_wrist': (-4.443, -1.0),
-        'left_clavicle': (-3.111, 4.774), 'left_shoulder': (15.812, 4.717, 10.976),
-        'left_elbow': (34.197, 17.182), 'left_wrist': (-0.115, -0.206),
+        'spine_lumbar': (46.824, 12.425, 9.772), 'spine_thoracic': (-10.615, 7.896, 17.738),
+        'neck': (34.964, 33.48, -10.221), 'right_shoulder': (31.352, 11.775, 7.74),
+        'right_elbow': (39.505, 80.0), 'right_wrist': (-4.721, -0.875),
+        'left_clavicle': (-3.447, 5.288), 'left_shoulder': (9.078, 3.354, 7.143),
+        'left_elbow': (41.499, 17.181), 'left_wrist': (-0.263, -0.23),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (50.911, 10.471, 7.807), 'neck': (35.0, 33.75, -6.418),
-        'head': (15.0, -11.25), 'right_clavicle': (-9.738, 14.105),
-        'right_shoulder': (30.645, 8.297, 8.752), 'right_elbow': (45.255, 80.0),
-        'right_wrist': (-6.251, -0.109), 'left_clavicle': (-5.411, 8.302),
-        'left_shoulder': (21.802, 4.042, 10.513), 'left_elbow': (34.748, 17.179),
-        'left_wrist': (-0.303, -0.194),
+        'spine_lumbar': (51.668, 10.11, 7.444), 'spine_thoracic': (-12.228, 7.117, 16.184),
+        'neck': (35.0, 33.75, -6.418), 'head': (15.0, -11.25),
+        'right_shoulder': (30.517, 7.657, 8.943), 'right_elbow': (46.295, 80.0),
+        'right_wrist': (-6.527, 0.04), 'left_clavicle': (-5.774, 8.86),
+        'left_shoulder': (14.489, 2.338, 5.817), 'left_elbow': (43.68, 17.179),
+        'left_wrist': (-0.519, -0.183),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (55.435, 8.309, 5.632), 'spine_thoracic': (-13.482, 6.511, 14.975),
-        'neck': (35.0, 33.75, -2.846), 'head': (15.0, -10.981), 'right_clavicle': (-9.762, 14.551),
-        'right_shoulder': (29.893, 4.489, 9.918), 'right_elbow': (51.37, 80.0),
-        'right_wrist': (-7.876, 0.811), 'left_clavicle': (-7.585, 11.638),
-        'left_shoulder': (27.606, 3.737, 9.869), 'left_elbow': (38.405, 17.192),
-        'left_wrist': (-0.843, 0.574),
+        'spine_lumbar': (55.618, 8.221, 5.544), 'spine_thoracic': (-13.543, 6.481, 14.916),
+        'neck': (35.0, 33.75, -2.846), 'head': (15.0, -10.981), 'right_clavicle': (-9.763, 14.569),
+        'right_shoulder': (29.862, 4.336, 9.966), 'right_elbow': (51.613, 80.0),
+        'right_wrist': (-7.94, 0.849), 'left_clavicle': (-7.673, 11.773),
+        'left_shoulder': (22.771, 2.586, 6.465), 'left_elbow': (45.224, 17.194),
+        'left_wrist': (-1.063, 0.719),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (58.603, 6.794, 4.109), 'spine_thoracic': (-14.537, 6.001, 13.958),
-        'neck': (35.0, 33.005, -0.866), 'head': (15.0, -11.096), 'right_clavicle': (-9.778, 14.863),
-        'right_shoulder': (29.374, 1.886, 10.805), 'right_elbow': (55.524, 80.0),
-        'right_wrist': (-9.029, 1.517), 'left_clavicle': (-9.107, 13.974),
-        'left_shoulder': (28.804, 4.53, 9.104),
+        'spine_lumbar': (58.419, 6.882, 4.197), 'spine_thoracic': (-14.475, 6.03, 14.017),
+        'neck': (35.0, 33.005, -0.866), 'head': (15.0, -11.096), 'right_clavicle': (-9.777, 14.845),
+        'right_shoulder': (29.403, 2.031, 10.746), 'right_elbow': (55.288, 80.0),
+        'right_wrist': (-8.955, 1.472), 'left_clavicle': (-9.019, 13.838),
+        'left_shoulder': (26.835, 4.109, 7.749), 'left_elbow': (52.95, 17.244),
     })
     # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (59.808, 6.218, 3.53), 'spine_thoracic': (-14.938, 5.807, 13.572),
-        'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.785, 14.982),
-        'right_shoulder': (29.183, 0.937, 11.196), 'right_elbow': (57.07, 80.0),
-        'right_wrist': (-9.516, 1.814), 'left_clavicle': (-9.686, 14.862),
-        'left_shoulder': (26.195, 5.637, 8.631), 'left_elbow': (62.083, 17.296),
-        'left_wrist': (-3.407, 6.266),
+        'spine_lumbar': (59.762, 6.24, 3.552), 'spine_thoracic': (-14.922, 5.814, 13.587),
+        'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.784, 14.977),
+        'right_shoulder': (29.19, 0.972, 11.181), 'right_elbow': (57.012, 80.0),
+        'right_wrist': (-9.498, 1.802), 'left_clavicle': (-9.664, 14.828),
+        'left_shoulder': (25.924, 5.566, 8.431), 'left_elbow': (62.399, 17.296),
+        'left_wrist': (-3.411, 6.256),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
@@ -461,8 +462,9 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, 32.945, -1.001), 'right_shoulder': (30.46, 1.012, 11.058),
-        'right_elbow': (54.597, 79.961), 'right_wrist': (-8.849, 1.691),
+        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 32.945, -1.001),
+        'right_shoulder': (30.46, 1.012, 11.058), 'right_elbow': (54.597, 79.961),
+        'right_wrist': (-8.849, 1.691),
     })
     human.KeyJoints(8.2, {
         'neck': (35.0, 32.041, -6.416), 'right_shoulder': (34.681, 1.939, 7.941),
@@ -474,9 +476,8 @@ def replace_fuel_filter_cad():
         'right_wrist': (6.941, 2.975),
     })
     human.KeyJoints(8.4, {
-        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 28.675, -26.574),
-        'right_shoulder': (35.155, 4.564, -22.079), 'right_elbow': (37.549, 41.299),
-        'right_wrist': (24.281, 6.809),
+        'neck': (35.0, 28.675, -26.574), 'right_shoulder': (35.155, 4.564, -22.079),
+        'right_elbow': (37.549, 41.299), 'right_wrist': (24.281, 6.809),
     })
     human.KeyJoints(8.5, {
         'neck': (35.0, 27.305, -34.783), 'right_shoulder': (31.267, 5.991, -44.103),
@@ -516,54 +517,55 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.4, {
-        'spine_lumbar': (59.995, 6.238, 3.295), 'spine_thoracic': (-14.933, 5.68, 13.17),
-        'neck': (34.758, 25.744, -49.569), 'left_shoulder': (25.742, 5.861, 8.679),
-        'left_elbow': (64.036, 17.595), 'left_wrist': (-4.088, 6.913),
+        'spine_lumbar': (59.995, 6.275, 3.246), 'spine_thoracic': (-14.882, 5.648, 13.054),
+        'neck': (34.758, 25.744, -49.569), 'left_clavicle': (-9.758, 15.0),
+        'left_shoulder': (25.128, 6.078, 8.628), 'left_elbow': (64.954, 17.693),
+        'left_wrist': (-4.24, 6.948),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.460396, duration=1.931992)
     human.KeyJoints(9.5, {
-        'spine_lumbar': (59.995, 7.202, 2.014), 'spine_thoracic': (-14.338, 4.828, 10.146),
-        'neck': (34.409, 26.221, -48.857), 'left_clavicle': (-9.719, 15.0),
-        'left_shoulder': (26.797, 5.949, 9.83), 'left_elbow': (61.569, 20.146),
-        'left_wrist': (-8.07, 7.829),
+        'spine_lumbar': (59.995, 7.568, 1.527), 'spine_thoracic': (-13.838, 4.504, 8.997),
+        'neck': (34.409, 26.221, -48.857), 'left_clavicle': (-9.596, 15.0),
+        'left_shoulder': (20.774, 8.052, 9.326), 'left_elbow': (70.563, 21.115),
+        'left_wrist': (-9.585, 8.177),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (59.996, 9.372, -0.869), 'spine_thoracic': (-12.962, 2.906, 3.342),
+        'spine_lumbar': (59.997, 10.464, -2.322), 'spine_thoracic': (-11.488, 1.939, -0.085),
         'neck': (32.811, 30.451, -35.644), 'head': (15.0, -11.201),
-        'left_shoulder': (29.185, 6.173, 12.418), 'left_elbow': (55.949, 25.886),
-        'left_wrist': (-17.02, 9.885),
+        'left_clavicle': (-9.236, 14.999), 'left_shoulder': (11.787, 11.571, 10.825),
+        'left_elbow': (81.654, 28.777), 'left_wrist': (-21.536, 10.924),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (59.997, 12.414, -4.905), 'spine_thoracic': (-10.768, 0.179, -6.192),
-        'neck': (31.62, 33.719, -18.709), 'head': (15.0, -11.068),
-        'left_clavicle': (-9.385, 14.988), 'left_shoulder': (32.688, 6.652, 16.018),
-        'left_elbow': (47.617, 33.918), 'left_wrist': (-29.406, 12.71),
+        'spine_lumbar': (59.998, 14.401, -7.548), 'spine_thoracic': (-8.118, -1.598, -12.428),
+        'neck': (31.62, 33.719, -18.709), 'head': (15.0, -11.068), 'left_clavicle': (-8.774, 14.99),
+        'left_shoulder': (5.809, 12.076, 12.971), 'left_elbow': (86.019, 39.172),
+        'left_wrist': (-37.535, 14.572),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (59.998, 15.657, -9.193), 'spine_thoracic': (-7.273, -2.968, -16.343),
+        'spine_lumbar': (59.999, 17.304, -11.388), 'spine_thoracic': (-4.38, -4.595, -21.515),
         'neck': (34.966, 33.736, -6.16), 'head': (14.999, -10.506),
-        'left_clavicle': (-9.157, 14.962), 'left_shoulder': (37.519, 7.711, 19.681),
-        'left_elbow': (36.993, 42.379), 'left_wrist': (-41.469, 15.339),
+        'left_clavicle': (-8.651, 14.969), 'left_shoulder': (16.571, 9.535, 16.195),
+        'left_elbow': (66.266, 46.678), 'left_wrist': (-47.512, 16.659),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (59.999, 18.291, -12.684), 'spine_thoracic': (-1.174, -6.422, -24.595),
+        'spine_lumbar': (60.0, 18.909, -13.52), 'spine_thoracic': (0.687, -7.217, -26.547),
         'neck': (34.887, 29.549, 1.468), 'head': (14.931, -5.993),
-        'left_clavicle': (-9.297, 14.951), 'left_shoulder': (45.408, 9.638, 22.12),
-        'left_elbow': (23.95, 48.919), 'left_wrist': (-47.172, 16.14),
+        'left_clavicle': (-9.123, 14.968), 'left_shoulder': (36.026, 9.813, 19.806),
+        'left_elbow': (37.398, 50.473), 'left_wrist': (-48.629, 16.379),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 19.675, -14.555), 'spine_thoracic': (5.306, -9.231, -28.968),
-        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.824, 14.986),
-        'left_shoulder': (53.891, 11.48, 22.864), 'left_elbow': (12.842, 52.015),
-        'left_wrist': (-45.702, 15.125),
+        'spine_lumbar': (60.0, 19.775, -14.693), 'spine_thoracic': (5.685, -9.374, -29.285),
+        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.791, 14.991),
+        'left_shoulder': (51.881, 11.453, 22.307), 'left_elbow': (15.765, 52.263),
+        'left_wrist': (-45.872, 15.144),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 19.999, -14.998), 'spine_thoracic': (7.174, -9.997, -29.996),
+        'spine_lumbar': (60.0, 19.999, -14.999), 'spine_thoracic': (7.175, -9.998, -29.997),
         'neck': (31.492, -8.768, 9.26), 'head': (12.667, 10.389), 'left_clavicle': (-9.999, 15.0),
-        'left_shoulder': (56.414, 11.962, 22.984), 'left_elbow': (9.661, 52.704),
-        'left_wrist': (-44.708, 14.686),
+        'left_shoulder': (56.407, 11.962, 22.982), 'left_elbow': (9.671, 52.705),
+        'left_wrist': (-44.709, 14.686),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
@@ -574,249 +576,268 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.4, {
         'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
-        'left_shoulder': (56.393, 11.974, 22.963), 'left_elbow': (9.713, 52.702),
-        'left_wrist': (-44.728, 14.69),
+        'left_shoulder': (56.4, 11.966, 22.971), 'left_elbow': (9.696, 52.704),
+        'left_wrist': (-44.724, 14.689),
     })
     human.KeyJoints(10.5, {
         'neck': (31.5, -7.979, 20.439), 'head': (12.634, 10.463),
-        'left_shoulder': (52.88, 13.043, 19.974), 'left_elbow': (17.132, 52.073),
-        'left_wrist': (-46.074, 14.883),
+        'left_shoulder': (53.504, 11.893, 20.765), 'left_elbow': (15.46, 52.266),
+        'left_wrist': (-45.586, 14.812),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.112, 15.989, 11.614),
-        'left_elbow': (37.254, 50.3), 'left_wrist': (-49.624, 15.366),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (41.907, 11.723, 11.836),
+        'left_elbow': (37.983, 50.464), 'left_wrist': (-48.79, 15.209),
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
-        'left_shoulder': (29.682, 19.911, 0.066), 'left_elbow': (61.512, 47.757),
-        'left_wrist': (-53.94, 15.863),
+        'left_shoulder': (27.534, 15.327, 5.742), 'left_elbow': (62.757, 44.044),
+        'left_wrist': (-58.878, 12.076),
     })
     human.KeyJoints(10.8, {
         'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
-        'left_shoulder': (11.766, 24.593, -15.344), 'left_elbow': (82.108, 43.956),
-        'left_wrist': (-57.97, 15.776),
+        'left_shoulder': (7.255, 27.93, 1.289), 'left_elbow': (88.678, 40.141),
+        'left_wrist': (-59.844, -9.223),
     })
     human.KeyJoints(10.9, {
-        'left_shoulder': (-9.632, 29.348, -33.954), 'left_elbow': (88.899, 38.561),
-        'left_wrist': (-60.255, 13.679),
+        'left_shoulder': (-7.22, 22.747, -31.358), 'left_elbow': (95.002, 40.115),
+        'left_wrist': (-59.524, 13.846),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-26.977, 34.859, -52.445), 'left_elbow': (88.38, 33.572),
-        'left_wrist': (-61.758, 10.358),
+        'left_shoulder': (-21.565, 31.492, -49.999), 'left_elbow': (96.818, 35.721),
+        'left_wrist': (-62.343, 11.674),
     })
     human.KeyJoints(11.1, {
-        'left_shoulder': (-33.233, 40.139, -66.786), 'left_elbow': (92.787, 31.55),
-        'left_wrist': (-64.364, 8.925),
+        'left_shoulder': (-29.742, 38.428, -65.147), 'left_elbow': (97.366, 32.816),
+        'left_wrist': (-64.869, 9.883),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(11.2, {
-        'left_shoulder': (-34.072, 42.463, -73.867), 'left_elbow': (97.228, 31.171),
-        'left_wrist': (-66.312, 8.761),
+        'left_shoulder': (-33.333, 42.098, -73.51), 'left_elbow': (98.174, 31.436),
+        'left_wrist': (-66.422, 8.967),
     })
     human.KeyJoints(11.3, {
-        'left_shoulder': (-34.188, 42.971, -75.578), 'left_elbow': (98.415, 31.103),
-        'left_wrist': (-66.823, 8.748),
+        'left_shoulder': (-34.183, 42.968, -75.576), 'left_elbow': (98.42, 31.105),
+        'left_wrist': (-66.823, 8.749),
     })
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.320387, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.582976)
-    human.KeyJoints(11.5, {'neck': (35.0, -5.557, 66.353)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.678887)
+    human.KeyJoints(11.5, {'neck': (35.0, -5.568, 66.354)})
     human.KeyJoints(11.6, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (7.181, -10.0, -30.0),
         'right_shoulder': (25.239, 16.65, -86.65), 'right_wrist': (68.791, 17.033),
+        'left_shoulder': (-34.186, 43.009, -75.59), 'left_elbow': (98.401, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.7, {
-        'spine_lumbar': (60.0, 19.873, -14.927), 'spine_thoracic': (7.118, -9.937, -29.931),
-        'right_shoulder': (25.314, 16.53, -86.576), 'right_elbow': (30.677, -35.022),
-        'right_wrist': (68.768, 17.014),
+        'spine_lumbar': (60.0, 19.948, -14.97), 'spine_thoracic': (7.152, -9.974, -29.972),
+        'right_shoulder': (25.264, 16.577, -86.615), 'right_elbow': (30.695, -35.037),
+        'right_wrist': (68.781, 17.025), 'left_shoulder': (-34.178, 42.79, -75.317),
+        'left_elbow': (98.571, 31.103),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (59.991, 16.716, -13.119), 'spine_thoracic': (5.561, -8.373, -28.213),
-        'right_clavicle': (-9.796, 14.961), 'right_shoulder': (27.189, 13.562, -84.754),
-        'right_elbow': (30.715, -34.405), 'right_wrist': (68.194, 16.537),
+        'spine_lumbar': (59.988, 18.563, -14.176), 'spine_thoracic': (6.387, -9.288, -29.213),
+        'right_clavicle': (-9.792, 14.983), 'right_shoulder': (25.946, 14.633, -85.682),
+        'right_elbow': (31.226, -34.757), 'right_wrist': (68.529, 16.81),
+        'left_shoulder': (-33.978, 36.752, -68.022), 'left_elbow': (103.234, 31.103),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (59.95, 8.501, -8.412), 'spine_thoracic': (1.471, -4.3, -23.74),
-        'neck': (35.0, -5.159, 66.266), 'right_shoulder': (32.104, 5.779, -79.985),
-        'right_elbow': (30.818, -32.794), 'right_wrist': (66.701, 15.293),
+        'spine_lumbar': (59.952, 14.442, -11.815), 'spine_thoracic': (4.113, -7.245, -26.958),
+        'right_shoulder': (27.996, 8.857, -82.94), 'right_elbow': (32.762, -33.924),
+        'right_wrist': (67.78, 16.169), 'left_shoulder': (-33.581, 19.372, -47.363),
+        'left_elbow': (116.497, 31.103), 'left_wrist': (-66.811, 8.741),
+    })
+    human.KeyJoints(12.0, {
+        'spine_lumbar': (59.873, 7.797, -8.008), 'spine_thoracic': (0.446, -3.95, -23.322),
+        'neck': (35.0, -5.152, 66.26), 'right_shoulder': (31.521, -0.283, -78.769),
+        'right_elbow': (34.819, -32.582), 'right_wrist': (66.576, 15.137),
+        'left_shoulder': (-34.525, -2.729, -23.481), 'left_elbow': (132.874, 31.049),
+        'left_wrist': (-67.186, 8.576),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.975363, duration=0.347476)
-    human.KeyJoints(12.0, {
-        'spine_lumbar': (59.638, -2.277, -2.235), 'spine_thoracic': (-4.126, 1.057, -17.86),
-        'neck': (34.967, -5.393, 65.39), 'right_clavicle': (-9.835, 14.708),
-        'right_shoulder': (38.729, -4.898, -73.561), 'right_elbow': (30.984, -30.647),
-        'right_wrist': (64.788, 13.643),
-    })
+    human.LookAt((10.0, 25.0, 95.0), start=12.071274, duration=0.451565)
     human.KeyJoints(12.1, {
-        'spine_lumbar': (57.889, -11.617, 3.132), 'spine_thoracic': (-9.477, 5.786, -12.738),
-        'neck': (34.319, -10.356, 49.151), 'right_clavicle': (-9.708, 14.418),
-        'right_shoulder': (44.563, -15.844, -67.516), 'right_elbow': (31.201, -28.678),
-        'right_wrist': (63.399, 12.168),
+        'spine_lumbar': (59.564, -0.355, -3.336), 'spine_thoracic': (-4.046, 0.104, -18.861),
+        'neck': (34.973, -5.344, 65.549), 'right_clavicle': (-9.854, 14.731),
+        'right_shoulder': (36.561, -10.309, -74.182), 'right_elbow': (35.736, -30.927),
+        'right_wrist': (65.138, 13.869), 'left_shoulder': (-37.198, -11.332, -25.335),
+        'left_elbow': (138.572, 31.103), 'left_wrist': (-66.811, 8.741),
     })
-    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.2, {
-        'spine_lumbar': (55.121, -16.806, 6.128), 'spine_thoracic': (-12.809, 8.52, -9.874),
-        'neck': (33.347, -17.814, 24.779), 'right_clavicle': (-9.456, 14.058),
-        'right_shoulder': (47.638, -23.697, -63.725), 'right_elbow': (31.383, -27.48),
-        'right_wrist': (62.961, 11.313),
+        'spine_lumbar': (58.388, -8.173, 1.154), 'spine_thoracic': (-8.327, 4.047, -14.584),
+        'neck': (34.542, -8.646, 54.739), 'right_clavicle': (-9.771, 14.517),
+        'right_shoulder': (41.981, -17.853, -69.731), 'right_elbow': (34.533, -29.311),
+        'right_wrist': (63.924, 12.651), 'left_shoulder': (-38.303, 4.672, -50.548),
+        'left_elbow': (127.856, 31.103),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (54.169, -18.185, 6.926), 'spine_thoracic': (-13.73, 9.259, -9.112),
-        'neck': (32.712, -22.686, 8.865), 'right_clavicle': (-9.366, 13.938),
-        'right_shoulder': (48.408, -26.034, -62.665), 'right_elbow': (31.466, -27.15),
-        'right_wrist': (62.92, 11.089),
+        'spine_lumbar': (56.245, -14.119, 4.579), 'spine_thoracic': (-11.548, 7.121, -11.333),
+        'neck': (33.819, -14.195, 36.6), 'right_shoulder': (45.932, -22.73, -65.728),
+        'right_elbow': (32.776, -28.04), 'right_wrist': (63.238, 11.72),
+        'left_shoulder': (-36.464, 26.446, -67.699), 'left_elbow': (111.666, 31.103),
+    })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
+    human.KeyJoints(12.4, {
+        'spine_lumbar': (54.606, -17.363, 6.451), 'spine_thoracic': (-13.29, 8.826, -9.561),
+        'neck': (33.104, -19.677, 18.693), 'right_clavicle': (-9.41, 13.996),
+        'right_shoulder': (47.926, -25.344, -63.297), 'right_elbow': (31.718, -27.33),
+        'right_wrist': (62.958, 11.212), 'left_shoulder': (-34.68, 39.598, -74.109),
+        'left_elbow': (101.165, 31.103),
+    })
+    human.KeyJoints(12.5, {
+        'spine_lumbar': (54.165, -18.19, 6.929), 'spine_thoracic': (-13.734, 9.262, -9.109),
+        'neck': (32.7, -22.774, 8.576), 'right_shoulder': (48.41, -26.048, -62.661),
+        'right_elbow': (31.47, -27.149), 'right_wrist': (62.921, 11.088),
+        'left_shoulder': (-34.19, 42.99, -75.579), 'left_elbow': (98.418, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=12.322839, duration=0.072)
+    human.Grasp('right_hand', 'close', start=12.522839, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.4, {
+    human.KeyJoints(12.6, {
         'neck': (32.683, -22.906, 8.146), 'right_shoulder': (48.412, -26.052, -62.657),
         'right_elbow': (31.473, -27.102), 'right_wrist': (62.923, 11.088),
     })
-    human.KeyJoints(12.5, {
+    human.KeyJoints(12.7, {
         'right_shoulder': (47.831, -25.093, -63.018), 'right_elbow': (33.326, -11.552),
         'right_wrist': (63.916, 11.648),
     })
-    human.KeyJoints(12.6, {
+    human.KeyJoints(12.8, {
         'right_shoulder': (47.793, -23.5, -63.312), 'right_elbow': (38.015, 20.107),
         'right_wrist': (67.182, 13.316),
     })
-    human.KeyJoints(12.7, {
+    human.KeyJoints(12.9, {
         'right_shoulder': (49.443, -22.511, -63.109), 'right_elbow': (42.37, 50.621),
         'right_wrist': (72.089, 14.964),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.8, {
+    human.KeyJoints(13.0, {
         'right_shoulder': (50.565, -22.34, -62.914), 'right_elbow': (43.775, 62.742),
         'right_wrist': (74.379, 15.317),
     })
-    human.KeyJoints(12.9, {
-        'right_shoulder': (49.12, -22.601, -63.161), 'right_elbow': (41.83, 46.472),
-        'right_wrist': (71.324, 14.783),
+    human.KeyJoints(13.1, {
+        'right_clavicle': (-9.366, 13.937), 'right_shoulder': (49.12, -22.601, -63.161),
+        'right_elbow': (41.83, 46.472), 'right_wrist': (71.324, 14.783),
     })
-    human.KeyJoints(13.0, {
+    human.KeyJoints(13.2, {
         'right_shoulder': (47.682, -23.733, -63.302), 'right_elbow': (37.151, 14.6),
         'right_wrist': (66.471, 12.985),
     })
-    human.KeyJoints(13.1, {
+    human.KeyJoints(13.3, {
         'right_shoulder': (47.935, -25.364, -62.934), 'right_elbow': (32.842, -15.619),
         'right_wrist': (63.661, 11.495),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.2, {
+    human.KeyJoints(13.4, {
         'right_shoulder': (48.404, -26.041, -62.662), 'right_elbow': (31.489, -26.942),
         'right_wrist': (62.932, 11.093),
     })
-    human.KeyJoints(13.3, {
+    human.KeyJoints(13.5, {
         'right_shoulder': (47.791, -25.001, -63.046), 'right_elbow': (33.536, -9.967),
         'right_wrist': (64.037, 11.715),
     })
-    human.KeyJoints(13.4, {
+    human.KeyJoints(13.6, {
         'right_shoulder': (47.846, -23.42, -63.312), 'right_elbow': (38.329, 22.102),
         'right_wrist': (67.456, 13.438),
     })
-    human.KeyJoints(13.5, {
+    human.KeyJoints(13.7, {
         'right_shoulder': (49.559, -22.484, -63.09), 'right_elbow': (42.545, 52.012),
         'right_wrist': (72.349, 15.019),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.6, {
+    human.KeyJoints(13.8, {
         'right_shoulder': (50.543, -22.341, -62.918), 'right_elbow': (43.753, 62.526),
         'right_wrist': (74.338, 15.313),
     })
-    human.KeyJoints(13.7, {
+    human.KeyJoints(13.9, {
         'right_shoulder': (49.003, -22.641, -63.18), 'right_elbow': (41.613, 44.86),
         'right_wrist': (71.032, 14.707),
     })
-    human.KeyJoints(13.8, {
+    human.KeyJoints(14.0, {
         'right_shoulder': (47.655, -23.823, -63.294), 'right_elbow': (36.84, 12.608),
         'right_wrist': (66.23, 12.868),
     })
-    human.KeyJoints(13.9, {
+    human.KeyJoints(14.1, {
         'right_shoulder': (47.984, -25.439, -62.905), 'right_elbow': (32.662, -16.977),
         'right_wrist': (63.558, 11.44),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.0, {
+    human.KeyJoints(14.2, {
         'right_shoulder': (48.391, -26.024, -62.669), 'right_elbow': (31.518, -26.671),
         'right_wrist': (62.946, 11.101),
     })
-    human.KeyJoints(14.1, {
+    human.KeyJoints(14.3, {
         'right_shoulder': (47.755, -24.906, -63.075), 'right_elbow': (33.757, -8.33),
         'right_wrist': (64.166, 11.786),
     })
-    human.KeyJoints(14.2, {
+    human.KeyJoints(14.4, {
         'right_shoulder': (47.906, -23.343, -63.31), 'right_elbow': (38.641, 24.09),
         'right_wrist': (67.738, 13.56),
     })
-    human.KeyJoints(14.3, {
+    human.KeyJoints(14.5, {
         'right_shoulder': (49.672, -22.46, -63.071), 'right_elbow': (42.709, 53.335),
         'right_wrist': (72.598, 15.068),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.4, {
+    human.KeyJoints(14.6, {
         'right_shoulder': (50.51, -22.344, -62.924), 'right_elbow': (43.719, 62.199),
         'right_wrist': (74.276, 15.308),
     })
-    human.KeyJoints(14.5, {
+    human.KeyJoints(14.7, {
         'right_shoulder': (48.888, -22.683, -63.197), 'right_elbow': (41.385, 43.198),
         'right_wrist': (70.735, 14.624),
     })
-    human.KeyJoints(14.6, {
+    human.KeyJoints(14.8, {
         'right_shoulder': (47.634, -23.914, -63.284), 'right_elbow': (36.533, 10.626),
         'right_wrist': (65.999, 12.754),
     })
-    human.KeyJoints(14.7, {
+    human.KeyJoints(14.9, {
         'right_shoulder': (48.033, -25.512, -62.877), 'right_elbow': (32.495, -18.265),
         'right_wrist': (63.464, 11.389),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.8, {
+    human.KeyJoints(15.0, {
         'right_shoulder': (48.373, -25.999, -62.679), 'right_elbow': (31.558, -26.291),
         'right_wrist': (62.966, 11.113),
     })
-    human.KeyJoints(14.9, {
+    human.KeyJoints(15.1, {
         'right_shoulder': (47.721, -24.81, -63.102), 'right_elbow': (33.988, -6.644),
         'right_wrist': (64.303, 11.862),
     })
-    human.KeyJoints(15.0, {
+    human.KeyJoints(15.2, {
         'right_shoulder': (47.996, -23.238, -63.308), 'right_elbow': (38.874, 26.066),
         'right_wrist': (67.962, 13.652),
     })
-    human.KeyJoints(15.1, {
+    human.KeyJoints(15.3, {
         'right_shoulder': (49.782, -22.438, -63.052), 'right_elbow': (42.861, 54.588),
         'right_wrist': (72.834, 15.112),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.2, {
+    human.KeyJoints(15.4, {
         'right_shoulder': (50.466, -22.348, -62.932), 'right_elbow': (43.673, 61.766),
         'right_wrist': (74.195, 15.3),
     })
-    human.KeyJoints(15.3, {
+    human.KeyJoints(15.5, {
         'right_shoulder': (48.774, -22.729, -63.214), 'right_elbow': (41.148, 41.489),
         'right_wrist': (70.435, 14.536),
     })
-    human.KeyJoints(15.4, {
+    human.KeyJoints(15.6, {
         'right_shoulder': (47.62, -24.007, -63.272), 'right_elbow': (36.23, 8.656),
         'right_wrist': (65.776, 12.643),
     })
-    human.KeyJoints(15.5, {
+    human.KeyJoints(15.7, {
         'right_shoulder': (48.08, -25.582, -62.85), 'right_elbow': (32.341, -19.481),
         'right_wrist': (63.379, 11.343),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=15.571309, duration=0.072)
-    human.KeyJoints(15.6, {
+    human.Grasp('right_hand', 'open', start=15.771309, duration=0.072)
+    human.KeyJoints(15.8, {
         'right_shoulder': (48.414, -26.055, -62.656), 'right_elbow': (31.468, -27.147),
         'right_wrist': (62.921, 11.087),
     })
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.643309, duration=0.393628)
+    human.LookAt((10.0, 25.0, 95.0), start=15.843309, duration=0.393628)
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(18.9, {
+    human.KeyJoints(19.1, {
         'spine_lumbar': (54.161, -18.196, 6.933), 'spine_thoracic': (-13.738, 9.266, -9.106),
         'neck': (32.683, -22.906, 8.146), 'head': (15.0, 11.25), 'right_clavicle': (-9.366, 13.937),
         'right_shoulder': (48.433, -26.008, -62.661), 'right_elbow': (31.437, -27.147),
@@ -826,7 +847,7 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: posture on root
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: gaze on head
-    human.KeyJoints(19.0, {
+    human.KeyJoints(19.2, {
         'spine_lumbar': (43.963, -14.883, 5.613), 'spine_thoracic': (-10.243, 7.112, -7.372),
         'neck': (25.29, -17.725, 6.346), 'head': (11.607, 8.705),
         'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.907, -19.399, -54.317),
@@ -834,7 +855,7 @@ def replace_fuel_filter_cad():
         'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.823, 36.257, -64.814),
         'left_elbow': (86.011, 28.399), 'left_wrist': (-53.798, 7.087),
     })
-    human.KeyJoints(19.1, {
+    human.KeyJoints(19.3, {
         'spine_lumbar': (23.407, -7.332, 2.671), 'spine_thoracic': (-3.002, 2.66, -3.508),
         'neck': (10.073, -7.06, 2.548), 'head': (4.623, 3.467), 'right_clavicle': (-3.608, 5.315),
         'right_shoulder': (24.103, -5.291, -36.22), 'right_elbow': (32.851, 0.319),
@@ -842,8 +863,8 @@ def replace_fuel_filter_cad():
         'left_shoulder': (-7.744, 21.243, -41.321), 'left_elbow': (58.763, 22.485),
         'left_wrist': (-25.492, 3.346),
     })
-    human.KeyRoot(19.2, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.2, {
+    human.KeyRoot(19.4, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.4, {
         'spine_lumbar': (11.207, -0.247, 0.281), 'spine_thoracic': (1.883, 0.015, -0.369),
         'neck': (0.099, -0.07, 0.056), 'head': (0.046, 0.034), 'right_clavicle': (-0.38, 0.519),
         'right_shoulder': (10.298, 6.189, -21.544), 'right_elbow': (34.088, 15.539),
@@ -853,8 +874,8 @@ def replace_fuel_filter_cad():
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
-    human.KeyRoot(19.3, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.3, {
+    human.KeyRoot(19.5, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.5, {
         'spine_lumbar': (11.511, 9.921, 0.0), 'spine_thoracic': (1.861, 1.989, 0.0),
         'neck': (-0.103, 0.072, 0.0), 'head': (-0.047, -0.035), 'right_clavicle': (0.0, -0.037),
         'right_shoulder': (8.637, 7.544, -19.854), 'right_elbow': (34.275, 17.307),
@@ -863,16 +884,16 @@ def replace_fuel_filter_cad():
         'left_wrist': (0.177, -0.052), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
         'left_hip': (30.631, 0.0, 0.0), 'left_knee': (132.66,),
     })
-    human.KeyRoot(19.4, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.4, {
+    human.KeyRoot(19.6, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.6, {
         'spine_lumbar': (-6.191, 20.0, 0.0), 'spine_thoracic': (-3.156, 9.794, 0.0),
         'left_elbow': (34.137, 17.16), 'right_hip': (30.975, -0.002, -0.001),
         'right_knee': (133.004,), 'right_ankle': (15.162, 0.004),
         'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,), 'left_ankle': (15.162, -0.004),
         'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(19.5, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.5, {
+    human.KeyRoot(19.7, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.7, {
         'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.973, 10.0, 0.0),
         'right_shoulder': (8.646, 7.543, -19.922), 'right_elbow': (34.243, 17.255),
         'right_wrist': (-0.078, -0.028), 'left_shoulder': (8.722, 7.526, -19.935),
@@ -881,8 +902,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.087, 0.295), 'left_hip': (28.49, -2.112, 2.219), 'left_knee': (132.068,),
         'left_ankle': (17.195, 2.945), 'left_toes': (85.798,),
     })
-    human.KeyRoot(19.6, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.6, {
+    human.KeyRoot(19.8, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.8, {
         'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
         'right_shoulder': (8.425, 7.046, -19.816), 'right_elbow': (35.92, 17.228),
         'right_wrist': (-0.108, 0.367), 'left_shoulder': (7.378, 7.439, -20.102),
@@ -891,8 +912,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.135, 0.289), 'left_hip': (32.614, -4.47, 3.326), 'left_knee': (134.97,),
         'left_ankle': (-0.061, 5.498), 'right_toes': (86.572,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.7, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.7, {
+    human.KeyRoot(19.9, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.9, {
         'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 10.0, 0.0),
         'right_shoulder': (8.057, 6.09, -19.572), 'right_elbow': (39.1, 17.202),
         'right_wrist': (-0.192, 1.128), 'left_shoulder': (4.972, 7.356, -20.417),
@@ -901,8 +922,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.11, 0.184), 'left_hip': (41.403, -17.888, 7.84),
         'left_ankle': (-30.511, 18.414), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.8, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.8, {
+    human.KeyRoot(20.0, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.0, {
         'spine_lumbar': (-25.476, 20.0, 0.0), 'spine_thoracic': (-10.903, 10.0, 0.0),
         'right_shoulder': (8.096, 5.866, -19.508), 'right_elbow': (39.802, 17.188),
         'right_wrist': (-0.194, 1.298), 'left_shoulder': (4.397, 7.367, -20.51),
@@ -911,16 +932,16 @@ def replace_fuel_filter_cad():
         'left_hip': (57.423, -20.119, 29.089), 'left_knee': (135.0,),
         'left_ankle': (-48.832, 8.202), 'left_toes': (70.209,),
     })
-    human.KeyRoot(19.9, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.9, {
+    human.KeyRoot(20.1, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.1, {
         'spine_lumbar': (-23.91, 20.0, 0.0), 'spine_thoracic': (-14.842, 10.0, 0.0),
         'right_shoulder': (8.276, 6.702, -19.771), 'left_elbow': (38.809, 17.189),
         'right_hip': (28.271, -0.289, -0.112), 'right_knee': (130.289,),
         'left_hip': (86.119, -23.232, 26.697), 'left_knee': (134.934,),
         'left_ankle': (-45.269, 13.893), 'left_toes': (55.701,),
     })
-    human.KeyRoot(20.0, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.0, {
+    human.KeyRoot(20.2, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.2, {
         'spine_lumbar': (-16.434, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
@@ -929,122 +950,122 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.053, 0.198), 'left_hip': (106.363, -23.561, 21.269),
         'left_knee': (133.197,), 'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
     })
-    human.KeyRoot(20.1, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.1, {
+    human.KeyRoot(20.3, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.3, {
         'spine_lumbar': (-15.119, 20.0, 0.0), 'right_hip': (32.639, -0.2, -0.093),
         'right_knee': (134.651,), 'left_hip': (119.967, -25.0, 10.628), 'left_knee': (134.997,),
         'left_ankle': (-30.514, 21.747), 'left_toes': (33.665,),
     })
-    human.KeyRoot(20.2, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.2, {
+    human.KeyRoot(20.4, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.4, {
         'spine_lumbar': (-25.621, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'neck': (0.0, 0.0, 0.0), 'right_hip': (28.698, -0.214, -0.085), 'right_knee': (130.717,),
         'right_ankle': (15.049, 0.153), 'left_hip': (106.414, -25.0, 14.189),
         'left_knee': (133.37,), 'left_ankle': (-18.019, 29.277), 'right_toes': (86.836,),
         'left_toes': (40.113,),
     })
-    human.KeyRoot(20.3, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.3, {
+    human.KeyRoot(20.5, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.5, {
         'spine_lumbar': (-29.633, 20.0, 0.0), 'spine_thoracic': (-7.595, 10.0, 0.0),
         'right_hip': (28.189, -0.481, -0.185), 'right_knee': (130.238,),
         'right_ankle': (15.056, 0.313), 'left_hip': (99.669, -13.239, 8.826),
         'left_knee': (127.309,), 'left_ankle': (-16.285, 16.935), 'right_toes': (86.696,),
         'left_toes': (42.118,),
     })
-    human.KeyRoot(20.4, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.4, {
+    human.KeyRoot(20.6, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.6, {
         'spine_lumbar': (-6.473, 8.302, 0.0), 'spine_thoracic': (-4.013, 3.384, 0.0),
         'right_hip': (31.962, -0.038, -0.017), 'right_knee': (133.967,),
         'right_ankle': (15.046, 0.029), 'left_hip': (96.735, -0.177, 0.211),
         'left_knee': (127.733,), 'left_ankle': (9.607, 0.397), 'right_toes': (86.913,),
         'left_toes': (21.317,),
     })
-    human.KeyRoot(20.5, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.5, {
+    human.KeyRoot(20.7, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.7, {
         'spine_lumbar': (1.049, 0.0, 0.0), 'spine_thoracic': (0.163, 0.0, 0.0),
         'right_hip': (32.725, 0.0, 0.0), 'right_knee': (134.767,), 'right_ankle': (15.337, 0.0),
         'left_hip': (94.048, 0.0, 0.0), 'left_knee': (127.0,), 'left_ankle': (20.0, 0.0),
         'right_toes': (86.575,), 'left_toes': (12.93,),
     })
-    human.KeyRoot(20.6, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.6, {
+    human.KeyRoot(20.8, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.8, {
         'spine_lumbar': (11.398, 0.087, 0.0), 'spine_thoracic': (1.9, 0.015, 0.0),
         'right_hip': (35.735, -0.023, 0.058), 'right_knee': (131.627,),
         'right_ankle': (20.0, 0.063), 'left_hip': (89.746, 0.006, -0.043), 'left_knee': (117.9,),
         'left_ankle': (19.999, -0.043), 'right_toes': (75.79,), 'left_toes': (8.148,),
     })
-    human.KeyRoot(20.7, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.7, {
+    human.KeyRoot(20.9, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.9, {
         'spine_lumbar': (14.357, 2.873, 0.0), 'spine_thoracic': (2.375, 0.515, 0.0),
         'right_hip': (27.113, 0.156, 1.227), 'right_knee': (102.784,), 'right_ankle': (20.0, 1.237),
         'left_hip': (65.605, -0.374, -0.92), 'left_knee': (87.914,), 'left_ankle': (20.0, -0.994),
         'right_toes': (55.625,), 'left_toes': (2.34,),
     })
-    human.KeyRoot(20.8, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.8, {
+    human.KeyRoot(21.0, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.0, {
         'spine_lumbar': (-0.927, 9.644, 0.0), 'spine_thoracic': (-0.288, 1.74, 0.0),
         'right_hip': (9.259, 1.86, 2.393), 'right_knee': (72.145,), 'right_ankle': (20.0, 3.033),
         'left_hip': (46.408, -1.99, -2.09), 'left_knee': (66.387,), 'left_ankle': (19.999, -2.886),
         'right_toes': (42.883,), 'left_toes': (0.027,),
     })
-    human.KeyRoot(20.9, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.9, {
+    human.KeyRoot(21.1, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.1, {
         'spine_lumbar': (7.984, 14.755, 0.0), 'spine_thoracic': (1.059, 2.641, 0.0),
         'right_hip': (-2.9, 3.588, 1.523), 'right_knee': (42.98,), 'right_ankle': (20.0, 3.899),
         'left_hip': (33.685, -3.312, -2.205), 'left_knee': (40.45,), 'left_ankle': (6.829, -3.979),
         'right_toes': (25.897,),
     })
-    human.KeyRoot(21.0, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.0, {
+    human.KeyRoot(21.2, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.2, {
         'spine_lumbar': (21.829, 16.552, 0.0), 'spine_thoracic': (-4.174, 3.104, 0.0),
         'right_hip': (-6.868, 4.15, 0.957), 'right_knee': (31.478,), 'right_ankle': (18.509, 4.258),
         'left_hip': (28.254, -3.842, -2.062), 'left_knee': (26.967,), 'left_ankle': (-1.218, -4.36),
         'right_toes': (19.831,),
     })
-    human.KeyRoot(21.1, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.1, {
+    human.KeyRoot(21.3, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.3, {
         'spine_lumbar': (50.162, -0.761, 0.0), 'spine_thoracic': (3.4, -0.057, 0.0),
         'right_hip': (-14.98, 5.689, 3.64), 'right_knee': (27.272,), 'right_ankle': (-5.256, 6.746),
         'left_hip': (23.117, -6.034, -2.57), 'left_knee': (36.859,), 'left_ankle': (13.881, -6.558),
         'right_toes': (47.611,),
     })
-    human.KeyRoot(21.2, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.2, {
+    human.KeyRoot(21.4, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.4, {
         'spine_lumbar': (47.857, -2.919, 0.0), 'spine_thoracic': (7.438, -0.433, 0.0),
         'right_hip': (-14.91, 5.676, 5.662), 'right_knee': (27.02,),
         'right_ankle': (-17.847, 7.981), 'left_hip': (12.589, -6.581, -1.466),
         'left_knee': (19.87,), 'left_ankle': (7.365, -6.742), 'right_toes': (59.998,),
     })
-    human.KeyRoot(21.3, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.3, {
+    human.KeyRoot(21.5, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.5, {
         'spine_lumbar': (18.591, -1.1, 0.0), 'spine_thoracic': (6.071, -0.19, 0.0),
         'right_hip': (-14.907, 6.444, 4.463), 'right_knee': (28.859,),
         'right_ankle': (-6.571, 7.339), 'left_hip': (0.038, -7.194, -0.005), 'left_knee': (6.455,),
         'left_ankle': (6.418, -7.194), 'right_toes': (49.126,),
     })
-    human.KeyRoot(21.4, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.4, {
+    human.KeyRoot(21.6, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.6, {
         'spine_lumbar': (2.79, -1.045, 0.0), 'spine_thoracic': (0.496, -0.19, 0.0),
         'right_hip': (-2.004, 7.135, 2.848), 'right_knee': (38.171,),
         'right_ankle': (16.568, 7.702), 'left_hip': (-4.361, -7.282, 0.554), 'left_knee': (5.203,),
         'left_ankle': (9.528, -7.303), 'right_toes': (23.818,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.5, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.5, {
+    human.KeyRoot(21.7, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.7, {
         'spine_lumbar': (2.697, -4.136, 0.0), 'spine_thoracic': (0.433, -0.746, 0.0),
         'right_hip': (3.502, 6.661, 0.71), 'right_knee': (23.67,), 'right_ankle': (17.784, 6.966),
         'left_hip': (-4.019, -6.514, 0.453), 'left_knee': (4.59,), 'left_ankle': (8.391, -6.476),
         'right_toes': (2.803,), 'left_toes': (0.139,),
     })
-    human.KeyRoot(21.6, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.6, {
+    human.KeyRoot(21.8, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.8, {
         'spine_lumbar': (9.419, -9.439, 0.0), 'spine_thoracic': (1.543, -1.699, 0.0),
         'right_hip': (1.814, 1.934, 0.061), 'right_knee': (6.69,), 'right_ankle': (4.877, 1.935),
         'left_hip': (1.814, -1.934, -0.061), 'left_knee': (6.69,), 'left_ankle': (4.877, -1.935),
         'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.667309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.667309, {
+    human.KeyRoot(21.867309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.867309, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

@@ -324,6 +324,7 @@ def restore_contacts(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
+    solve_lost: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
@@ -335,6 +336,13 @@ def restore_contacts(
     and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
     9 joints of 21): a caller poses the rows it keeps (``restore_contacts_posed``, or
     ``balance_frames``, which drops the rows that lost their contacts unposed).
+
+    The pinned arms are solved first (the arms' and the legs' dofs are apart, and the legs do
+    not move a hand): a row whose hand ends over ``POSITION_TOL`` off its site has lost its
+    contacts whatever the legs do, and its legs are not solved (its q keeps the legs it came
+    with, its error is the hand's) unless ``solve_lost`` (a caller that reads the lost rows'
+    whole error). Every caller throws such rows away: on fuzz case #3198 they were 9,323 of
+    14,696 rows of the pelvis's first round and every row of the trunk's.
     """
     skel = ir.skeleton
     q = q.copy()
@@ -361,20 +369,7 @@ def restore_contacts(
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
         k = skel.dof_index(f"{side}_knee_flex")
         q[moved, k] = np.maximum(q[moved, k], SEED_FLEX)
-    goals = [Goal(name, position=pos, orientation=rot) for name, (pos, rot, _) in feet.items()]
-    model = prepare(skel, goals, q, root_position=root, root_rotation=root_rotation)
-    res = solve_ta(
-        skel, goals, q, model=model, restarts=0, null_gain=0.0, tol=1e-4,
-        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
-    )  # fmt: skip
-    q = res.q
     worst = np.zeros(len(q))
-    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
-        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
-        want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, soles_in_foot[name])
-        now = part_site_positions(skel, q, root, root_rotation, soles)
-        err = np.linalg.norm(now - want, axis=-1).max(axis=1)
-        worst = np.maximum(worst, np.where(touch, err, 0.0))
     for hand, (rows, target) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
@@ -390,6 +385,30 @@ def restore_contacts(
         )
         q[idx] = res.q
         worst[idx] = np.maximum(worst[idx], res.position_error)
+    legs = np.arange(len(q)) if solve_lost else np.flatnonzero(worst <= POSITION_TOL)
+    if legs.size == 0:
+        return q, root, worst
+    sub = legs.size < len(q)
+    ql, rl, rotl = (q[legs], root[legs], root_rotation[legs]) if sub else (q, root, root_rotation)
+    goals = [
+        Goal(name, position=pos[legs] if sub else pos, orientation=rot[legs] if sub else rot)
+        for name, (pos, rot, _) in feet.items()
+    ]
+    model = prepare(skel, goals, ql, root_position=rl, root_rotation=rotl)
+    res = solve_ta(
+        skel, goals, ql, model=model, restarts=0, null_gain=0.0, tol=1e-4,
+        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
+    )  # fmt: skip
+    q[legs] = res.q
+    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
+        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
+        rel = soles_in_foot[name]
+        if sub:
+            pos, rot, touch, rel = pos[legs], rot[legs], touch[legs], rel[legs]
+        want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, rel)
+        now = part_site_positions(skel, res.q, rl, rotl, soles)
+        err = np.linalg.norm(now - want, axis=-1).max(axis=1)
+        worst[legs] = np.maximum(worst[legs], np.where(touch, err, 0.0))
     return q, root, worst
 
 
@@ -719,9 +738,15 @@ def balance_frames(
         new_root[:, [0, 2]] += step
         shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        q_a, root_a, worst_a = restore_contacts(
-            ir, q[trying], new_root, rot[trying], _sub_feet(feet, trying), _sub_hands(hands, trying)
-        )
+        # a row that went too far is lost and stops whatever its contacts do: not solved
+        near = np.flatnonzero(~far)
+        q_a, root_a, worst_a = q[trying].copy(), new_root, np.zeros(trying.size)
+        if near.size:
+            sub = trying[near]
+            q_a[near], root_a[near], worst_a[near] = restore_contacts(
+                ir, q[sub], new_root[near], rot[sub], _sub_feet(feet, sub),
+                _sub_hands(hands, sub),
+            )  # fmt: skip
         lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
         ok_rows = trying[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]

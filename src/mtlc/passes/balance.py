@@ -95,6 +95,10 @@ SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight
 LEG_PATIENCE = 4
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
+# s: the pelvis and trunk corrections are solved on frames this far apart (and on each run's
+# last frame); the frames between take them interpolated, their contacts restored, and are
+# solved in full only where that does not balance them as well as their neighbours
+SOLVE_EVERY = 1 / 20
 # rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
@@ -630,6 +634,35 @@ def _concatenate_poses(parts: list[Pose]) -> Pose:
     )
 
 
+class SolveGrid(NamedTuple):
+    """Which rows of a batch of frames are solved (``solved``) and, for each other row, the
+    solved rows around it (``before``, ``after``: positions in the batch) and its share of
+    the one after (``weight``, by time)."""
+
+    solved: BoolArray
+    before: np.ndarray
+    after: np.ndarray
+    weight: FloatArray
+
+
+def solve_grid(rows: np.ndarray, t: FloatArray, stride: int) -> SolveGrid:
+    """Every ``stride``-th row of each run of consecutive frame indices ``rows`` (ascending),
+    and each run's last, are solved; ``t`` (len(rows),) their times."""
+    n = rows.size
+    first = np.r_[True, np.diff(rows) != 1] if n else np.zeros(0, dtype=bool)
+    start = np.maximum.accumulate(np.where(first, np.arange(n), 0))
+    last = np.r_[first[1:], True] if n else first
+    solved = ((np.arange(n) - start) % max(stride, 1) == 0) | last
+    at = np.flatnonzero(solved)
+    k = np.searchsorted(at, np.arange(n))  # the first solved row at or after each row
+    after = at[np.minimum(k, at.size - 1)] if n else at
+    before = at[np.maximum(k - 1, 0)] if n else at
+    before = np.where(solved, np.arange(n), before)
+    gap = t[after] - t[before]
+    weight = np.where(solved, 0.0, (t - t[before]) / np.where(gap > 0, gap, 1.0))
+    return SolveGrid(solved, before, after, weight)
+
+
 def balance_frames(
     ir: MotionIR, frames: Frames, only: np.ndarray | None = None, segs: Segments | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -716,54 +749,61 @@ def balance_frames(
     rot = frames.root_rotation[rows]
     q, root = q0.copy(), root0.copy()
     worst = np.zeros(rows.size)
-    margin = before[rows]
-    # rows whose contacts gave out keep their last good pose and stop; converged rows stop
-    active = np.flatnonzero(~kneeling[rows])
-    schedule = StepSchedule(rows.size)
+    margin = before[rows].copy()
+    good = np.zeros(rows.size, dtype=bool)
     p_rows = pose_r  # the pose of (q, root), kept up to date
-    for _ in range(ROUNDS):
-        c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
-        c = c[:, [0, 2]]
-        push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
-        moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
-        active, push = active[moving], push[moving]
-        if active.size == 0:
-            break
-        awake = schedule.awake(active)
-        trying = active[awake]
-        if trying.size == 0:  # every row sits this round out
-            continue
-        step = schedule.steps(trying, push[awake] / COM_GAIN)
-        new_root = root[trying].copy()
-        new_root[:, [0, 2]] += step
-        shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
-        far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        # a row that went too far is lost and stops whatever its contacts do: not solved
-        near = np.flatnonzero(~far)
-        q_a, root_a, worst_a = q[trying].copy(), new_root, np.zeros(trying.size)
-        if near.size:
-            sub = trying[near]
-            q_a[near], root_a[near], worst_a[near] = restore_contacts(
-                ir, q[sub], new_root[near], rot[sub], _sub_feet(feet, sub),
-                _sub_hands(hands, sub),
-            )  # fmt: skip
-        lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
-        ok_rows = trying[~lost]
-        q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
-        # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
-        # loses every row of four rounds)
-        if ok_rows.size:
-            moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
-            put_pose(p_rows, ok_rows, moved)
-        retrying = schedule.update(trying, lost, far, worst_a)
-        active = np.sort(np.concatenate([active[~awake], retrying]))
-    p = p_rows
-    margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
-    good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
-    good &= lowest_point(skel, p) >= floor
-    keep = good & (margin >= ACCEPT_MARGIN)
-    retry = np.flatnonzero(~keep)
-    if retry.size:
+
+    def correct(sel: np.ndarray) -> None:
+        """Balance the rows ``sel`` (positions in ``rows``, ascending) by the pelvis, then
+        the trunk where the pelvis could not; their q, root, worst, margin and good in place."""
+        # rows whose contacts gave out keep their last good pose and stop; converged rows stop
+        active = sel[~kneeling[rows[sel]]]
+        schedule = StepSchedule(rows.size)
+        for _ in range(ROUNDS):
+            c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
+            c = c[:, [0, 2]]
+            push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
+            moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
+            active, push = active[moving], push[moving]
+            if active.size == 0:
+                break
+            awake = schedule.awake(active)
+            trying = active[awake]
+            if trying.size == 0:  # every row sits this round out
+                continue
+            step = schedule.steps(trying, push[awake] / COM_GAIN)
+            new_root = root[trying].copy()
+            new_root[:, [0, 2]] += step
+            shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
+            far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
+            # a row that went too far is lost and stops whatever its contacts do: not solved
+            near = np.flatnonzero(~far)
+            q_a, root_a, worst_a = q[trying].copy(), new_root, np.zeros(trying.size)
+            if near.size:
+                sub = trying[near]
+                q_a[near], root_a[near], worst_a[near] = restore_contacts(
+                    ir, q[sub], new_root[near], rot[sub], _sub_feet(feet, sub),
+                    _sub_hands(hands, sub),
+                )  # fmt: skip
+            lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
+            ok_rows = trying[~lost]
+            q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
+            # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles'
+            # limit loses every row of four rounds)
+            if ok_rows.size:
+                moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
+                put_pose(p_rows, ok_rows, moved)
+            retrying = schedule.update(trying, lost, far, worst_a)
+            active = np.sort(np.concatenate([active[~awake], retrying]))
+        p = take_pose(p_rows, sel)
+        margin[sel] = hull_margin(
+            hulls.take(sel), carried_com(ir, p, t[rows][sel], segs.holding)[:, [0, 2]]
+        )
+        good[sel] = (worst[sel] <= POSITION_TOL) & skel.within_limits(q[sel], tol=1e-6)
+        good[sel] &= lowest_point(skel, p) >= floor[sel]
+        retry = sel[~(good[sel] & (margin[sel] >= ACCEPT_MARGIN))]
+        if retry.size == 0:
+            return
         # second strategy: lean the trunk, from the pelvis result where it kept the contacts
         qs = np.where(good[retry, None], q[retry], q0[retry])
         rs = np.where(good[retry, None], root[retry], root0[retry])
@@ -777,7 +817,40 @@ def balance_frames(
         take = retry[ok2]
         q[take], root[take], margin[take] = q2[ok2], r2[ok2], m2[ok2]
         good[take] = True
-        keep = good & (margin >= ACCEPT_MARGIN)
+
+    # the frames of a grid are solved (``SOLVE_EVERY``); those between take their neighbours'
+    # corrections interpolated in time, contacts restored, where that balances them as well as
+    # the neighbours (the blend's own test), and are solved in full where it does not
+    grid = solve_grid(rows, t[rows], round(SOLVE_EVERY * frames.fps))
+    correct(np.flatnonzero(grid.solved))
+    between = np.flatnonzero(~grid.solved)
+    a, b = grid.before[between], grid.after[between]
+    tried = between[good[a] & good[b]]
+    if tried.size:
+        a, b = grid.before[tried], grid.after[tried]
+        w = grid.weight[tried, None]
+        qi = q0[tried] + (1 - w) * (q[a] - q0[a]) + w * (q[b] - q0[b])
+        ri = root0[tried] + (1 - w) * (root[a] - root0[a]) + w * (root[b] - root0[b])
+        qi = np.clip(qi, skel.lower, skel.upper)
+        qi, ri, wi, pi = restore_contacts_posed(
+            ir, qi, ri, rot[tried], _sub_feet(feet, tried), _sub_hands(hands, tried),
+            with_axes=False,
+        )  # fmt: skip
+        mi = hull_margin(
+            hulls.take(tried), carried_com(ir, pi, t[rows][tried], segs.holding)[:, [0, 2]]
+        )
+        fine = (wi <= POSITION_TOL) & skel.within_limits(qi, tol=1e-6)
+        fine &= lowest_point(skel, pi) >= floor[tried]
+        bar = np.minimum(np.minimum(margin[a], margin[b]), MARGIN) - 1e-3
+        fine &= (mi >= bar) | (mi >= MARGIN)
+        took = tried[fine]
+        q[took], root[took], worst[took], margin[took] = qi[fine], ri[fine], wi[fine], mi[fine]
+        good[took] = True
+        put_pose(p_rows, took, take_pose(pi, np.flatnonzero(fine)))
+        between = np.setdiff1d(between, took)
+    if between.size:
+        correct(between)
+    keep = good & (margin >= ACCEPT_MARGIN)
     # a frame keeps the best correction that kept its contacts (none: it stays as it was);
     # one still outside has lost its balance
     dq = np.zeros_like(frames.q)

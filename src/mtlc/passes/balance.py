@@ -101,6 +101,10 @@ RESTING = 2  # a ``hands`` mask's value for a resting hand (1: pinned, 0: free)
 LEG_PATIENCE = 4
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
+# s: the pelvis and trunk corrections are solved on frames this far apart (and on each run's
+# last frame); the frames between take them interpolated, their contacts restored, and are
+# solved in full only where that does not balance them as well as their neighbours
+SOLVE_EVERY = 1 / 20
 # rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
@@ -330,6 +334,7 @@ def restore_contacts(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
+    solve_lost: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
@@ -341,6 +346,13 @@ def restore_contacts(
     and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
     9 joints of 21): a caller poses the rows it keeps (``restore_contacts_posed``, or
     ``balance_frames``, which drops the rows that lost their contacts unposed).
+
+    The pinned arms are solved first (the arms' and the legs' dofs are apart, and the legs do
+    not move a hand): a row whose hand ends over ``POSITION_TOL`` off its site has lost its
+    contacts whatever the legs do, and its legs are not solved (its q keeps the legs it came
+    with, its error is the hand's) unless ``solve_lost`` (a caller that reads the lost rows'
+    whole error). Every caller throws such rows away: on fuzz case #3198 they were 9,323 of
+    14,696 rows of the pelvis's first round and every row of the trunk's.
     """
     skel = ir.skeleton
     q = q.copy()
@@ -367,20 +379,7 @@ def restore_contacts(
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
         k = skel.dof_index(f"{side}_knee_flex")
         q[moved, k] = np.maximum(q[moved, k], SEED_FLEX)
-    goals = [Goal(name, position=pos, orientation=rot) for name, (pos, rot, _) in feet.items()]
-    model = prepare(skel, goals, q, root_position=root, root_rotation=root_rotation)
-    res = solve_ta(
-        skel, goals, q, model=model, restarts=0, null_gain=0.0, tol=1e-4,
-        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
-    )  # fmt: skip
-    q = res.q
     worst = np.zeros(len(q))
-    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
-        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
-        want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, soles_in_foot[name])
-        now = part_site_positions(skel, q, root, root_rotation, soles)
-        err = np.linalg.norm(now - want, axis=-1).max(axis=1)
-        worst = np.maximum(worst, np.where(touch, err, 0.0))
     for hand, (rows, target) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
@@ -400,6 +399,30 @@ def restore_contacts(
         stretched = (rows[idx] == RESTING) & (bent < STRAIGHT_ELBOW) & (bent < planned - 1e-9)
         # counted as a metre off (finite: the pelvis's step schedule extrapolates errors)
         worst[idx] = np.maximum(worst[idx], np.where(stretched, 1.0, res.position_error))
+    legs = np.arange(len(q)) if solve_lost else np.flatnonzero(worst <= POSITION_TOL)
+    if legs.size == 0:
+        return q, root, worst
+    sub = legs.size < len(q)
+    ql, rl, rotl = (q[legs], root[legs], root_rotation[legs]) if sub else (q, root, root_rotation)
+    goals = [
+        Goal(name, position=pos[legs] if sub else pos, orientation=rot[legs] if sub else rot)
+        for name, (pos, rot, _) in feet.items()
+    ]
+    model = prepare(skel, goals, ql, root_position=rl, root_rotation=rotl)
+    res = solve_ta(
+        skel, goals, ql, model=model, restarts=0, null_gain=0.0, tol=1e-4,
+        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
+    )  # fmt: skip
+    q[legs] = res.q
+    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
+        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
+        rel = soles_in_foot[name]
+        if sub:
+            pos, rot, touch, rel = pos[legs], rot[legs], touch[legs], rel[legs]
+        want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, rel)
+        now = part_site_positions(skel, res.q, rl, rotl, soles)
+        err = np.linalg.norm(now - want, axis=-1).max(axis=1)
+        worst[legs] = np.maximum(worst[legs], np.where(touch, err, 0.0))
     return q, root, worst
 
 
@@ -636,6 +659,35 @@ def _concatenate_poses(parts: list[Pose]) -> Pose:
     )
 
 
+class SolveGrid(NamedTuple):
+    """Which rows of a batch of frames are solved (``solved``) and, for each other row, the
+    solved rows around it (``before``, ``after``: positions in the batch) and its share of
+    the one after (``weight``, by time)."""
+
+    solved: BoolArray
+    before: np.ndarray
+    after: np.ndarray
+    weight: FloatArray
+
+
+def solve_grid(rows: np.ndarray, t: FloatArray, stride: int) -> SolveGrid:
+    """Every ``stride``-th row of each run of consecutive frame indices ``rows`` (ascending),
+    and each run's last, are solved; ``t`` (len(rows),) their times."""
+    n = rows.size
+    first = np.r_[True, np.diff(rows) != 1] if n else np.zeros(0, dtype=bool)
+    start = np.maximum.accumulate(np.where(first, np.arange(n), 0))
+    last = np.r_[first[1:], True] if n else first
+    solved = ((np.arange(n) - start) % max(stride, 1) == 0) | last
+    at = np.flatnonzero(solved)
+    k = np.searchsorted(at, np.arange(n))  # the first solved row at or after each row
+    after = at[np.minimum(k, at.size - 1)] if n else at
+    before = at[np.maximum(k - 1, 0)] if n else at
+    before = np.where(solved, np.arange(n), before)
+    gap = t[after] - t[before]
+    weight = np.where(solved, 0.0, (t - t[before]) / np.where(gap > 0, gap, 1.0))
+    return SolveGrid(solved, before, after, weight)
+
+
 def balance_frames(
     ir: MotionIR, frames: Frames, only: np.ndarray | None = None, segs: Segments | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -725,48 +777,61 @@ def balance_frames(
     rot = frames.root_rotation[rows]
     q, root = q0.copy(), root0.copy()
     worst = np.zeros(rows.size)
-    margin = before[rows]
-    # rows whose contacts gave out keep their last good pose and stop; converged rows stop
-    active = np.flatnonzero(~kneeling[rows])
-    schedule = StepSchedule(rows.size)
+    margin = before[rows].copy()
+    good = np.zeros(rows.size, dtype=bool)
     p_rows = pose_r  # the pose of (q, root), kept up to date
-    for _ in range(ROUNDS):
-        c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
-        c = c[:, [0, 2]]
-        push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
-        moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
-        active, push = active[moving], push[moving]
-        if active.size == 0:
-            break
-        awake = schedule.awake(active)
-        trying = active[awake]
-        if trying.size == 0:  # every row sits this round out
-            continue
-        step = schedule.steps(trying, push[awake] / COM_GAIN)
-        new_root = root[trying].copy()
-        new_root[:, [0, 2]] += step
-        shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
-        far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        q_a, root_a, worst_a = restore_contacts(
-            ir, q[trying], new_root, rot[trying], _sub_feet(feet, trying), _sub_hands(hands, trying)
+
+    def correct(sel: np.ndarray) -> None:
+        """Balance the rows ``sel`` (positions in ``rows``, ascending) by the pelvis, then
+        the trunk where the pelvis could not; their q, root, worst, margin and good in place."""
+        # rows whose contacts gave out keep their last good pose and stop; converged rows stop
+        active = sel[~kneeling[rows[sel]]]
+        schedule = StepSchedule(rows.size)
+        for _ in range(ROUNDS):
+            c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
+            c = c[:, [0, 2]]
+            push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
+            moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
+            active, push = active[moving], push[moving]
+            if active.size == 0:
+                break
+            awake = schedule.awake(active)
+            trying = active[awake]
+            if trying.size == 0:  # every row sits this round out
+                continue
+            step = schedule.steps(trying, push[awake] / COM_GAIN)
+            new_root = root[trying].copy()
+            new_root[:, [0, 2]] += step
+            shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
+            far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
+            # a row that went too far is lost and stops whatever its contacts do: not solved
+            near = np.flatnonzero(~far)
+            q_a, root_a, worst_a = q[trying].copy(), new_root, np.zeros(trying.size)
+            if near.size:
+                sub = trying[near]
+                q_a[near], root_a[near], worst_a[near] = restore_contacts(
+                    ir, q[sub], new_root[near], rot[sub], _sub_feet(feet, sub),
+                    _sub_hands(hands, sub),
+                )  # fmt: skip
+            lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
+            ok_rows = trying[~lost]
+            q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
+            # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles'
+            # limit loses every row of four rounds)
+            if ok_rows.size:
+                moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
+                put_pose(p_rows, ok_rows, moved)
+            retrying = schedule.update(trying, lost, far, worst_a)
+            active = np.sort(np.concatenate([active[~awake], retrying]))
+        p = take_pose(p_rows, sel)
+        margin[sel] = hull_margin(
+            hulls.take(sel), carried_com(ir, p, t[rows][sel], segs.holding)[:, [0, 2]]
         )
-        lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
-        ok_rows = trying[~lost]
-        q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
-        # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
-        # loses every row of four rounds)
-        if ok_rows.size:
-            moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
-            put_pose(p_rows, ok_rows, moved)
-        retrying = schedule.update(trying, lost, far, worst_a)
-        active = np.sort(np.concatenate([active[~awake], retrying]))
-    p = p_rows
-    margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
-    good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
-    good &= lowest_point(skel, p) >= floor
-    keep = good & (margin >= ACCEPT_MARGIN)
-    retry = np.flatnonzero(~keep)
-    if retry.size:
+        good[sel] = (worst[sel] <= POSITION_TOL) & skel.within_limits(q[sel], tol=1e-6)
+        good[sel] &= lowest_point(skel, p) >= floor[sel]
+        retry = sel[~(good[sel] & (margin[sel] >= ACCEPT_MARGIN))]
+        if retry.size == 0:
+            return
         # second strategy: lean the trunk, from the pelvis result where it kept the contacts
         qs = np.where(good[retry, None], q[retry], q0[retry])
         rs = np.where(good[retry, None], root[retry], root0[retry])
@@ -780,7 +845,40 @@ def balance_frames(
         take = retry[ok2]
         q[take], root[take], margin[take] = q2[ok2], r2[ok2], m2[ok2]
         good[take] = True
-        keep = good & (margin >= ACCEPT_MARGIN)
+
+    # the frames of a grid are solved (``SOLVE_EVERY``); those between take their neighbours'
+    # corrections interpolated in time, contacts restored, where that balances them as well as
+    # the neighbours (the blend's own test), and are solved in full where it does not
+    grid = solve_grid(rows, t[rows], round(SOLVE_EVERY * frames.fps))
+    correct(np.flatnonzero(grid.solved))
+    between = np.flatnonzero(~grid.solved)
+    a, b = grid.before[between], grid.after[between]
+    tried = between[good[a] & good[b]]
+    if tried.size:
+        a, b = grid.before[tried], grid.after[tried]
+        w = grid.weight[tried, None]
+        qi = q0[tried] + (1 - w) * (q[a] - q0[a]) + w * (q[b] - q0[b])
+        ri = root0[tried] + (1 - w) * (root[a] - root0[a]) + w * (root[b] - root0[b])
+        qi = np.clip(qi, skel.lower, skel.upper)
+        qi, ri, wi, pi = restore_contacts_posed(
+            ir, qi, ri, rot[tried], _sub_feet(feet, tried), _sub_hands(hands, tried),
+            with_axes=False,
+        )  # fmt: skip
+        mi = hull_margin(
+            hulls.take(tried), carried_com(ir, pi, t[rows][tried], segs.holding)[:, [0, 2]]
+        )
+        fine = (wi <= POSITION_TOL) & skel.within_limits(qi, tol=1e-6)
+        fine &= lowest_point(skel, pi) >= floor[tried]
+        bar = np.minimum(np.minimum(margin[a], margin[b]), MARGIN) - 1e-3
+        fine &= (mi >= bar) | (mi >= MARGIN)
+        took = tried[fine]
+        q[took], root[took], worst[took], margin[took] = qi[fine], ri[fine], wi[fine], mi[fine]
+        good[took] = True
+        put_pose(p_rows, took, take_pose(pi, np.flatnonzero(fine)))
+        between = np.setdiff1d(between, took)
+    if between.size:
+        correct(between)
+    keep = good & (margin >= ACCEPT_MARGIN)
     # a frame keeps the best correction that kept its contacts (none: it stays as it was);
     # one still outside has lost its balance
     dq = np.zeros_like(frames.q)

@@ -31,6 +31,7 @@ from mtlc.passes import (
     settle,
     smooth,
     tool,
+    upright,
     verify,
 )
 from mtlc.passes.context import MotionOptions, PassContext
@@ -50,6 +51,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
+    ("upright", upright.run),  # the trunk a reach leaned comes back up when nothing needs it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)
     ("joint_speed", joint_speed.run),  # the clock stretched where a joint would outrun a person

@@ -27,6 +27,7 @@ from mtlc.passes import (
     manikin,
     pace,
     posture,
+    rest,
     sample,
     settle,
     smooth,
@@ -48,6 +49,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("footing", footing.run),  # each walk's stance moved back out of the scene's models
     ("locomotion", locomotion.generate),  # footsteps, stance, step segmentation
     ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
+    ("rest", rest.run),  # a released arm with nothing to do for a while comes down
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it

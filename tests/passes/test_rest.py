@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mtlc.body import part_site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.lint.manikins import parse_selection
@@ -115,3 +116,28 @@ def test_a_squatting_body_does_not_hang_its_arm(tmp_path: Path) -> None:
     """Squatting, a hanging arm goes into the thighs: the squat places free arms itself."""
     _, ir, _ = _compile(tmp_path, LEFT_WORK, before="    squat(20 cm)\n")
     assert _rests(ir) == []  # neither arm
+
+
+def test_the_grasp_after_a_rest_starts_where_the_rest_left_the_arm() -> None:
+    """tests/data/arms/a01 (female P5): the right arm rests between two presses and then grasps a
+    knob across the body, reached with the arm alone. The rest segment used to key the clavicle
+    too: restated after the contacts had moved it, the grasp ended 81 mm off the knob and the
+    hold's re-solve stepped the shoulder 19 deg in one frame."""
+    path = Path(__file__).parents[1] / "data" / "arms" / "a01_across_body.mtask"
+    program = run_frontend([path])
+    (timeline,) = program.timelines
+    timeline = dataclasses.replace(timeline, manikin=parse_selection("gb10000_1988:female:5")[0])
+    ir = run_motion(timeline, DiagnosticSink())
+    assert [s for s in ir.segments if s.kind == "rest" and s.track == "r_arm"]
+    skel, f = ir.skeleton, ir.frames
+    arm = [i for i, n in enumerate(skel.dof_names) if n.startswith("r_") and "leg" not in n]
+    arm = [i for i in arm if skel.dof_names[i].split("_")[1] in ("clavicle", "shoulder", "elbow")]
+    steps = np.degrees(np.abs(np.diff(f.q[:, arm], axis=0)))
+    assert steps.max() < 12.0, steps.max()
+    grasp = next(s for s in ir.segments if s.kind == "TO" and s.goal.site == "knob_left_mid")
+    k = int(np.argmin(np.abs(f.time - grasp.end)))
+    rows = slice(k, k + 1)
+    hand = part_site_positions(
+        skel, f.q[rows], f.root_position[rows], f.root_rotation[rows], ["r_hand"]
+    )
+    assert np.linalg.norm(hand[0, 0] - grasp.goal.position) < 0.005  # on the frames, not the solve

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 IR_FORMAT_VERSION = 1
-SEGMENT_KINDS = ("TA", "TO", "posture", "locomotion", "grip", "gaze", "hold")
+SEGMENT_KINDS = ("TA", "TO", "posture", "locomotion", "grip", "gaze", "hold", "rest")
 TRACKS = ("root", "spine", "head", "l_arm", "r_arm", "l_hand", "r_hand", "l_leg", "r_leg")
 
 

@@ -28,10 +28,12 @@ from mtlc.passes import (
     manikin,
     pace,
     posture,
+    rest,
     sample,
     settle,
     smooth,
     tool,
+    upright,
     verify,
 )
 from mtlc.passes.context import MotionOptions, PassContext
@@ -48,9 +50,11 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("footing", footing.run),  # each walk's stance moved back out of the scene's models
     ("locomotion", locomotion.generate),  # footsteps, stance, step segmentation
     ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
+    ("rest", rest.run),  # a released arm with nothing to do for a while comes down
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
+    ("upright", upright.run),  # the trunk a reach leaned comes back up when nothing needs it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("detour", detour.run),  # a reach's path bent around the scene's models by a via key
     ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)

@@ -50,6 +50,7 @@ from mtlc.passes.kneel import (
     to_world,
 )
 from mtlc.passes.locomotion import LegModel, leg_fk, leg_ik, leg_model
+from mtlc.passes.profile import minimum_jerk
 from mtlc.passes.stance import WIDE_RESULT
 from mtlc.passes.state import TRUNK_DOFS, PoseState, mark, reanchor, start_posture_from
 
@@ -1083,7 +1084,34 @@ def restate_kneel_on(seg: Segment, state: PoseState) -> None:
     kf.q[:, cols] = np.clip(shifted, skel.lower[dofs], skel.upper[dofs])
 
 
+# rad: a trunk leaned further than this (flexion, side bend or turn, lumbar and thorax summed)
+# keeps an idle arm where it is: let down beside a trunk a reach left bent and turned, the
+# forearm went into the thigh (16 mm, the tutorial's lamp)
+REST_TRUNK_LEAN = math.radians(20.0)
+
+
+def restate_rest(seg: Segment, state: PoseState) -> None:
+    """An idle arm's way down (``passes.rest``) from where the arm really is when it starts
+    (the release's pose, known only once the reaches and contacts are solved) to the rest pose;
+    no way down, the arm kept, where the trunk is leaned (``REST_TRUNK_LEAN``)."""
+    kf = seg.keyframes
+    assert kf is not None
+    skel = state.skel
+    q = state.q_at(seg.start, skip=seg)
+    idx = [skel.dof_index(n) for n in kf.dofs]
+    start, rest = q[idx], np.asarray(skel.q_comfort, dtype=float)[idx]
+    lean = max(
+        abs(sum(float(q[skel.dof_index(f"{j}_{axis}")]) for j in ("lumbar", "thorax")))
+        for axis in ("flex", "lat", "rot")
+    )
+    share = minimum_jerk((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
+    if lean > REST_TRUNK_LEAN:
+        share = np.zeros_like(share)
+    kf.q = start[None] + share[:, None] * (rest - start)[None]
+
+
 RESTATERS = {
+    "rest": restate_rest,
     "twist": restate_twist,
     "kneel_arms": restate_kneel_arms,
     "kneel_on": restate_kneel_on,

@@ -38,6 +38,13 @@ DEFAULT_APPROACH_M = 0.08
 TO_SHARE = (0.2, 0.5)  # the contact (TO) phase's share of a goal's time: at least, at most
 HAND_REST = {"left_hand": (0.2, 0.75, 0.0), "right_hand": (-0.2, 0.75, 0.0)}  # from the root
 HANDS = {"left": ("left_hand",), "right": ("right_hand",), "both": ("left_hand", "right_hand")}
+# s: a hand that let go and has nothing to do for this long lets its arm down (passes.rest), so
+# its next reach is timed from the side
+ARM_REST_IDLE = 1.5
+ARM_REST_POSTURES = ("stand", "bend")  # squatting or kneeling, the posture places free arms
+# m above the ground: a hand that let go lower than this is down already (letting it down
+# further swept the forearm through the thigh)
+ARM_REST_MIN_HEIGHT = 1.0
 _PRIMITIVE_STMTS = frozenset({ast.Goal, ast.Posture, ast.Walk, ast.Grip, ast.Gaze, ast.Still})
 
 
@@ -150,6 +157,7 @@ class Expander:
         # a hand has gone to a site since the last posture: a reach may have leaned the trunk
         # or left an arm raised, so a `stand()` then is motion, not a no-op
         self.reached_since_posture = False
+        self.released_at: dict[str, float] = {}  # when each hand last let go
         self.tool: Tool | None = None
         spec = ManikinSpec(*B.DEFAULT_MANIKIN)
         scene_name: str | None = None
@@ -599,8 +607,14 @@ class Expander:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
                     if stmt.state == "closed":
                         self.closed.add(h)
+                        self.released_at.pop(h, None)
                     else:
                         self.closed.discard(h)
+                        at = self.hand_pos.get(h)
+                        if at is not None and at[1] - self.root[1] >= ARM_REST_MIN_HEIGHT:
+                            self.released_at[h] = t + d
+                        else:
+                            self.released_at.pop(h, None)
                 return t + d
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
@@ -633,6 +647,16 @@ class Expander:
         )
         if stmt.approach is not None:
             self.check(V.APPROACH, approach, env, stmt.approach)
+        for h in hands:
+            let_go = self.released_at.get(h)
+            if (
+                let_go is not None
+                and t - let_go >= ARM_REST_IDLE - 1e-9
+                and self.posture in ARM_REST_POSTURES
+            ):
+                # idle that long, standing, the arm came down to the side (passes.rest): the
+                # reach is timed from there, not from the site it let go of
+                self.hand_pos[h] = None
         distance = max(_dist(self._hand(h), target) for h in hands)
         d = self.duration(timing, _REACH, stmt, env, distance)
         if approach == 0:

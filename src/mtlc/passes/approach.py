@@ -153,16 +153,28 @@ def pinned_hands(
     """Goals that keep the other hand where it is, when it holds a site at the segments'
     start (``hold.holding``: from its contact until its next arm motion, a walk, or a release
     it does not take back): a reach that bends the trunk must not pull it off."""
-    from mtlc.passes.hold import ARM_HAND, holding
+    from mtlc.passes.hold import ARM_HAND, held_contacts
 
     t0 = segs[0].start
     mine = {f"{s.goal.effector[0]}_hand" for s in segs}  # a tool's tip moves its hand too
-    held = holding(state.ir, t0, state.memo)
+    held = held_contacts(state.ir, t0, state.memo)
     return [
-        Goal(hand, position=state.site(hand, q0, root))
+        Goal(hand, position=_held_point(state, held[track], hand, q0, root))
         for track, hand in ARM_HAND.items()
         if hand not in mine and track in held
     ]
+
+
+def _held_point(
+    state: PoseState, contact: Segment, hand: str, q0: FloatArray, root: Any
+) -> FloatArray:
+    """Where a held hand must stay: its site while its contact is still to be solved (the
+    approaches are solved before the contact pass takes each hand from its approach point onto
+    its site: pinned where it stood, a hand was kept 8 cm off the part it then grasped, and the
+    other hand's reach left it there), else where the solved contact left it."""
+    if contact.keyframes is None and contact.goal.position is not None:
+        return np.asarray(contact.goal.position, dtype=float)
+    return state.site(hand, q0, root)
 
 
 def pins_off(

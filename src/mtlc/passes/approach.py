@@ -49,10 +49,6 @@ PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends in
 CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
 CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
 PIN_SAMPLES = 17  # poses checked on each stretch of a torso reach for its held hands, ends included
-# the trunk's correction on those poses, scaled up: the pace pass smooths a reach's path by a
-# Gaussian of 10-25 % of its progress, which flattened a correction that only just reached (the
-# held hand 2.5 mm off after it at 1x, 1 mm at 2x on the fuel filter, female P5; 0.2 mm at 3x)
-PIN_OVERSHOOT = 3.0
 PIN_SLACK = 2e-4  # m a held hand may be off on them (the hold pass's own tolerance)
 
 
@@ -480,8 +476,8 @@ def pinned_path(
     path that the arm put back by itself (``repin``) leaves further off than ``PIN_SLACK`` is
     solved again with the trunk, the reaching hands kept where they are in it and the held ones
     on their sites, and becomes a keyframe: every such pose, not only the worst, so the
-    correction rises and falls along the path and the pace pass's smoothing keeps it (a single
-    key in the middle was smoothed away: 11 mm)."""
+    correction rises and falls along the path (the pace pass smooths it only as far as the held
+    hands stay in reach: ``pace._keeping_holds``)."""
     if not pinned or len(poses) < 2:
         return list(poses), list(fracs)
     skel = state.skel
@@ -512,10 +508,7 @@ def pinned_path(
         root_position=np.tile(root[0], (n, 1)), root_rotation=np.tile(root[1], (n, 1)),
     )  # fmt: skip
     fixed = solve_ta(skel, goals, put_back[bad], model=m, restarts=0, null_gain=0.0, tol=2e-4).q
-    fixed = repin(
-        ctx, skel, skel.clip(put_back[bad] + PIN_OVERSHOOT * (fixed - put_back[bad])), pinned,
-        root, as_held=True,
-    )  # fmt: skip
+    fixed = repin(ctx, skel, fixed, pinned, root, as_held=True)
     keys = {
         float(at[i]): fixed[j]
         for j, i in enumerate(bad)

@@ -40,7 +40,7 @@ scene bench {
     ground 0 cm
     site knob at (25, 110, 40) cm normal (0, 0, -1)
     site dial at (-30, 95, 35) cm normal (0, 0, -1)
-    site shelf at (0, 150, -70) cm normal (0, 1, 0)
+    site shelf at (0, 150, -40) cm normal (0, 1, 0)
 }
 
 task turn_knob "Reach a knob without looking first" {

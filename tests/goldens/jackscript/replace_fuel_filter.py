@@ -444,8 +444,8 @@ def replace_fuel_filter():
         'neck': (35.0, -20.289, 8.762), 'head': (15.0, 6.763), 'right_clavicle': (-8.85, 14.973),
         'right_shoulder': (39.782, -2.597, 15.491), 'right_elbow': (26.99, 79.874),
         'right_wrist': (-0.746, -0.713), 'left_clavicle': (-9.612, 9.908),
-        'left_shoulder': (32.761, 4.409, 9.348), 'left_elbow': (40.168, 17.159),
-        'left_wrist': (-1.088, 0.966),
+        'left_shoulder': (32.791, 4.406, 9.347), 'left_elbow': (40.12, 17.159),
+        'left_wrist': (-1.084, 0.955),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
@@ -454,13 +454,13 @@ def replace_fuel_filter():
         'head': (15.0, 11.25), 'right_shoulder': (40.328, -2.684, 15.481),
         'right_elbow': (25.516, 79.864), 'right_wrist': (-0.357, -0.794),
         'left_clavicle': (-9.737, 9.931), 'left_shoulder': (32.854, 4.157, 9.42),
-        'left_elbow': (40.521, 17.159),
+        'left_elbow': (40.521, 17.159), 'left_wrist': (-1.093, 1.051),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
         'neck': (35.0, -32.906, 9.355), 'head': (14.907, 10.914),
         'right_shoulder': (40.321, -2.653, 15.447), 'right_elbow': (25.519, 79.833),
-        'right_wrist': (-0.425, -0.774), 'left_wrist': (-1.091, 1.047),
+        'right_wrist': (-0.425, -0.774),
     })
     human.KeyJoints(8.2, {
         'neck': (35.0, -19.417, -1.807), 'head': (13.423, 5.547),
@@ -496,13 +496,17 @@ def replace_fuel_filter():
     human.KeyJoints(8.7, {
         'spine_lumbar': (59.96, 15.15, 4.982), 'spine_thoracic': (-12.654, 8.667, 13.684),
         'neck': (32.999, 19.298, -36.513), 'head': (6.828, -10.003),
-        'right_clavicle': (-6.283, 14.998), 'right_shoulder': (32.438, 36.17, -22.78),
-        'right_elbow': (25.294, 46.257), 'right_wrist': (-66.899, 18.856),
+        'right_clavicle': (-6.283, 14.998), 'right_shoulder': (32.364, 36.15, -22.793),
+        'right_elbow': (25.393, 46.257), 'right_wrist': (-67.004, 18.873),
         'left_shoulder': (32.954, 4.147, 9.418),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
-    human.KeyJoints(8.8, {'neck': (32.898, 18.717, -37.979), 'head': (5.988, -9.808)})
+    human.KeyJoints(8.8, {
+        'neck': (32.898, 18.717, -37.979), 'head': (5.988, -9.808),
+        'right_shoulder': (32.452, 36.221, -22.808), 'right_elbow': (25.272, 46.235),
+        'right_wrist': (-66.911, 18.86),
+    })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
     human.KeyJoints(8.9, {'neck': (33.157, 18.523, -39.79), 'head': (7.275, -10.014)})
@@ -524,9 +528,10 @@ def replace_fuel_filter():
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 15.907, 1.965), 'spine_thoracic': (-12.08, 6.246, 7.071),
-        'neck': (33.868, 19.767, -42.17), 'right_wrist': (-67.027, 18.879),
-        'left_clavicle': (-9.632, 10.699), 'left_shoulder': (33.649, 4.567, 11.466),
-        'left_elbow': (38.841, 22.551), 'left_wrist': (-10.082, 3.889),
+        'neck': (33.868, 19.767, -42.17), 'right_elbow': (25.382, 46.235),
+        'right_wrist': (-67.027, 18.879), 'left_clavicle': (-9.632, 10.699),
+        'left_shoulder': (33.649, 4.567, 11.466), 'left_elbow': (38.841, 22.551),
+        'left_wrist': (-10.082, 3.889),
     })
     human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 16.831, -1.86), 'spine_thoracic': (-11.253, 3.175, -1.291),
@@ -536,15 +541,15 @@ def replace_fuel_filter():
     })
     human.KeyJoints(9.5, {
         'spine_lumbar': (60.0, 17.931, -6.402), 'spine_thoracic': (-9.74, -0.557, -11.236),
-        'neck': (34.525, 30.743, -9.549), 'left_clavicle': (-9.254, 12.802),
-        'left_shoulder': (36.133, 6.434, 17.019), 'left_elbow': (33.42, 37.398),
-        'left_wrist': (-34.402, 11.638),
+        'neck': (34.525, 30.743, -9.549), 'right_shoulder': (32.368, 36.199, -22.823),
+        'left_clavicle': (-9.254, 12.802), 'left_shoulder': (36.133, 6.434, 17.019),
+        'left_elbow': (33.42, 37.398), 'left_wrist': (-34.402, 11.638),
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 18.972, -10.696), 'spine_thoracic': (-6.41, -4.483, -20.647),
-        'neck': (35.0, 33.713, -1.394), 'head': (15.0, -11.25), 'right_elbow': (25.382, 46.235),
-        'left_clavicle': (-9.167, 13.87), 'left_shoulder': (39.854, 8.64, 19.501),
-        'left_elbow': (27.48, 44.814), 'left_wrist': (-44.494, 14.796),
+        'neck': (35.0, 33.713, -1.394), 'head': (15.0, -11.25), 'left_clavicle': (-9.167, 13.87),
+        'left_shoulder': (39.854, 8.64, 19.501), 'left_elbow': (27.48, 44.814),
+        'left_wrist': (-44.494, 14.796),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.697, -13.716), 'spine_thoracic': (-0.455, -8.096, -27.229),
@@ -556,8 +561,8 @@ def replace_fuel_filter():
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.979, -14.913), 'spine_thoracic': (3.3, -9.867, -29.812),
         'neck': (34.319, -4.252, 10.169), 'head': (14.464, 11.142),
-        'left_clavicle': (-9.97, 14.976), 'left_shoulder': (52.52, 13.07, 20.732),
-        'left_elbow': (12.499, 51.241), 'left_wrist': (-45.28, 14.872),
+        'left_clavicle': (-9.97, 14.976), 'left_shoulder': (52.432, 13.1, 20.73),
+        'left_elbow': (12.644, 51.241), 'left_wrist': (-45.45, 14.921),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
@@ -566,9 +571,7 @@ def replace_fuel_filter():
         'head': (12.892, 10.943), 'left_shoulder': (52.943, 13.176, 20.742),
         'left_elbow': (12.011, 51.361), 'left_wrist': (-45.103, 14.812),
     })
-    human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'right_shoulder': (32.368, 36.199, -22.823),
-    })
+    human.KeyJoints(10.0, {'spine_lumbar': (60.0, 20.0, -15.0)})
     human.KeyJoints(10.1, {
         'neck': (32.174, -3.731, 10.129), 'head': (12.892, 10.943),
         'left_shoulder': (52.943, 13.176, 20.742), 'left_elbow': (12.011, 51.361),
@@ -664,13 +667,13 @@ def replace_fuel_filter():
     human.KeyJoints(12.0, {
         'spine_lumbar': (55.236, -17.913, 4.341), 'spine_thoracic': (-13.327, 9.292, -11.317),
         'neck': (31.232, -21.806, 20.69), 'right_clavicle': (-9.103, 14.435),
-        'right_shoulder': (41.736, -16.865, -5.452), 'right_elbow': (26.804, 52.437),
-        'right_wrist': (-54.819, 16.547),
+        'right_shoulder': (41.738, -16.865, -5.452), 'right_elbow': (26.801, 52.437),
+        'right_wrist': (-54.817, 16.546),
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (54.542, -18.988, 4.907), 'spine_thoracic': (-13.822, 9.879, -10.76),
-        'neck': (31.082, -24.808, 12.493), 'right_shoulder': (41.855, -18.994, -4.759),
-        'right_elbow': (26.982, 52.688), 'right_wrist': (-54.589, 16.542),
+        'neck': (31.082, -24.808, 12.493), 'right_shoulder': (41.897, -18.995, -4.756),
+        'right_elbow': (26.916, 52.688), 'right_wrist': (-54.535, 16.528),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
@@ -678,10 +681,10 @@ def replace_fuel_filter():
     human.KeyJoints(12.2, {
         'neck': (31.184, -24.738, 12.772), 'right_clavicle': (-9.1, 14.352),
         'right_shoulder': (41.854, -19.0, -4.757), 'right_elbow': (26.982, 52.731),
+        'right_wrist': (-54.588, 16.541),
     })
     human.KeyJoints(12.3, {
         'right_shoulder': (41.733, -18.51, -4.935), 'right_elbow': (26.857, 57.738),
-        'right_wrist': (-54.537, 16.453),
     })
     human.KeyJoints(12.4, {'head': (15.0, 11.211), 'right_elbow': (26.723, 67.43)})
     human.KeyJoints(12.5, {

@@ -338,18 +338,21 @@ def replace_fuel_filter_cad():
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.037, 15.237, 13.165), 'spine_thoracic': (-7.996, 9.013, 19.73),
         'neck': (35.0, 30.357, -18.818), 'head': (11.226, -11.146),
-        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.28, 18.167, 6.002),
-        'right_elbow': (28.13, 17.195),
+        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.301, 18.164, 6.002),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (39.657, 15.845, 13.22), 'spine_thoracic': (-8.225, 9.05, 20.036),
         'neck': (34.998, 30.285, -19.238), 'head': (13.21, -11.169),
-        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.278, 17.849, 6.058),
-        'right_elbow': (28.414, 17.195),
+        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.459, 17.83, 6.059),
+        'right_elbow': (28.117, 17.195),
     })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101)})
+    human.KeyJoints(5.0, {
+        'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101),
+        'right_shoulder': (33.274, 17.845, 6.059), 'right_elbow': (28.425, 17.195),
+        'right_wrist': (-1.717, -1.983),
+    })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (28.425, 17.164)})
     human.KeyJoints(5.3, {'right_elbow': (28.465, 12.272)})
@@ -359,7 +362,7 @@ def replace_fuel_filter_cad():
     human.KeyJoints(5.5, {'right_elbow': (28.636, -15.365)})
     human.KeyJoints(5.6, {'right_elbow': (28.687, -33.451)})
     human.KeyJoints(5.7, {'right_elbow': (28.682, -51.278)})
-    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515), 'right_wrist': (-1.609, -1.962)})
+    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515)})
     human.KeyJoints(5.9, {
         'right_shoulder': (33.319, 18.306, 5.94), 'right_elbow': (28.582, -76.834),
     })
@@ -372,16 +375,17 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(6.4, {
         'right_shoulder': (33.319, 18.3, 5.942), 'right_elbow': (28.589, -75.532),
+        'right_wrist': (-1.606, -1.974),
     })
     human.KeyJoints(6.5, {'right_elbow': (28.662, -59.213)})
-    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545), 'right_wrist': (-1.651, -1.932)})
-    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363)})
+    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545)})
+    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363), 'right_wrist': (-1.7, -1.946)})
     human.KeyJoints(6.8, {
         'right_shoulder': (33.27, 17.826, 6.064), 'right_elbow': (28.363, 24.501),
     })
-    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211), 'right_wrist': (-1.682, -2.039)})
+    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211)})
     human.KeyJoints(7.0, {'right_elbow': (27.934, 70.933)})
-    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835)})
+    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835), 'right_wrist': (-1.622, -2.046)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:42:9 replace_fuel_filter_cad > grasp: grip on r_hand
@@ -390,65 +394,66 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
     human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=2.373581)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (39.653, 15.853, 13.22), 'spine_thoracic': (-8.228, 9.051, 20.039),
+        'spine_lumbar': (39.652, 15.854, 13.22), 'spine_thoracic': (-8.228, 9.051, 20.039),
         'neck': (34.968, 30.289, -18.988), 'head': (13.938, -11.097),
-        'right_clavicle': (-9.679, 12.996), 'right_shoulder': (33.248, 17.84, 6.061),
-        'right_elbow': (27.859, 80.0), 'right_wrist': (-1.622, -2.045),
-        'left_clavicle': (-0.001, 0.001), 'left_shoulder': (8.593, 5.729, 11.458),
-        'left_elbow': (34.379, 17.189),
+        'right_shoulder': (33.248, 17.84, 6.061), 'right_elbow': (27.859, 80.0),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.595, 5.73, 11.459),
+        'left_elbow': (34.378, 17.189),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.193, 15.653, 12.862), 'spine_thoracic': (-8.41, 8.976, 19.731),
+        'spine_lumbar': (40.077, 15.696, 12.939), 'spine_thoracic': (-8.36, 8.992, 19.797),
         'neck': (34.386, 30.554, -17.284), 'head': (14.757, -11.049),
-        'right_clavicle': (-9.651, 13.05), 'right_shoulder': (33.409, 17.157, 6.386),
-        'right_elbow': (28.295, 79.999), 'right_wrist': (-1.715, -1.969),
-        'left_clavicle': (-0.266, 0.324), 'left_shoulder': (8.137, 5.566, 10.934),
-        'left_elbow': (35.205, 17.187), 'left_wrist': (-0.041, 0.012),
+        'right_clavicle': (-9.657, 13.039), 'right_shoulder': (33.379, 17.305, 6.316),
+        'right_elbow': (28.214, 80.0), 'right_wrist': (-1.698, -1.985),
+        'left_clavicle': (-0.209, 0.255), 'left_shoulder': (9.145, 5.765, 11.388),
+        'left_elbow': (34.435, 17.188), 'left_wrist': (-0.025, 0.005),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (42.634, 14.746, 11.244), 'spine_thoracic': (-9.231, 8.637, 18.34),
+        'spine_lumbar': (41.94, 15.003, 11.704), 'spine_thoracic': (-8.942, 8.733, 18.735),
         'neck': (34.887, 32.527, -13.113), 'head': (14.999, -11.232),
-        'right_clavicle': (-9.527, 13.297), 'right_shoulder': (34.083, 14.07, 7.852),
-        'right_elbow': (30.201, 79.996), 'right_wrist': (-2.121, -1.625),
-        'left_clavicle': (-1.467, 1.784), 'left_shoulder': (6.222, 4.845, 8.61),
-        'left_elbow': (38.862, 17.181), 'left_wrist': (-0.226, 0.065),
+        'right_clavicle': (-9.562, 13.227), 'right_shoulder': (33.923, 14.955, 7.433),
+        'right_elbow': (29.728, 79.999), 'right_wrist': (-2.023, -1.722),
+        'left_clavicle': (-1.126, 1.369), 'left_shoulder': (11.56, 5.922, 11.076),
+        'left_elbow': (34.689, 17.183),
     })
     human.KeyJoints(7.5, {
-        'neck': (35.0, 33.75, -8.341), 'right_shoulder': (35.077, 8.361, 10.571),
-        'right_elbow': (33.545, 79.989), 'left_shoulder': (4.815, 3.751, 4.917),
-        'left_elbow': (44.561, 17.17),
+        'spine_lumbar': (45.331, 13.741, 9.448), 'spine_thoracic': (-10.013, 8.263, 16.795),
+        'neck': (35.0, 33.75, -8.341), 'right_shoulder': (34.775, 10.668, 9.47),
+        'right_elbow': (32.333, 79.996), 'left_clavicle': (-2.802, 3.405),
+        'left_shoulder': (16.021, 6.214, 10.501), 'left_elbow': (35.185, 17.174),
+        'left_wrist': (-0.346, 0.069),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (51.633, 11.367, 5.142), 'spine_thoracic': (-12.321, 7.374, 13.096),
-        'neck': (35.0, 33.75, -2.776), 'head': (15.0, -11.25), 'right_clavicle': (-9.052, 14.241),
-        'right_shoulder': (35.808, 2.637, 13.324), 'right_elbow': (36.528, 79.979),
-        'right_wrist': (-3.44, -0.412), 'left_clavicle': (-6.033, 7.289),
-        'left_shoulder': (10.134, 3.588, 3.25), 'left_elbow': (46.864, 17.158),
-        'left_wrist': (-0.92, 0.288),
+        'spine_lumbar': (49.482, 12.177, 6.621), 'spine_thoracic': (-11.386, 7.681, 14.366),
+        'neck': (35.0, 33.75, -2.776), 'head': (15.0, -11.25), 'right_clavicle': (-9.168, 14.011),
+        'right_shoulder': (35.6, 5.369, 12.0), 'right_elbow': (35.225, 79.99),
+        'right_wrist': (-3.177, -0.695), 'left_clavicle': (-4.921, 5.956),
+        'left_shoulder': (21.813, 6.57, 9.765), 'left_elbow': (35.958, 17.164),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (53.818, 10.418, 3.086), 'spine_thoracic': (-13.299, 6.977, 11.345),
-        'neck': (35.0, 30.167, 1.95), 'head': (15.0, -10.056), 'right_clavicle': (-8.871, 14.602),
-        'right_shoulder': (36.62, -0.959, 15.055), 'right_elbow': (36.6, 79.958),
-        'right_wrist': (-3.359, -0.161), 'left_clavicle': (-7.734, 9.126),
-        'left_shoulder': (20.41, 4.443, 4.677), 'left_elbow': (44.747, 17.153),
-        'left_wrist': (-1.127, 0.457),
+        'spine_lumbar': (52.894, 10.809, 3.934), 'spine_thoracic': (-12.723, 7.15, 12.069),
+        'neck': (35.0, 30.167, 1.95), 'head': (15.0, -10.056),
+        'right_shoulder': (36.395, 0.526, 14.331), 'right_elbow': (36.637, 79.972),
+        'right_wrist': (-3.409, -0.269), 'left_clavicle': (-7.035, 8.371),
+        'left_shoulder': (27.744, 6.687, 9.102), 'left_elbow': (37.131, 17.155),
+        'left_wrist': (-0.924, 0.313),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (53.034, 10.403, 2.128), 'spine_thoracic': (-13.572, 6.819, 10.559),
-        'neck': (35.0, 7.31, 5.843), 'head': (15.0, -2.437), 'right_clavicle': (-8.744, 14.854),
-        'right_shoulder': (38.574, -2.482, 15.678), 'right_elbow': (31.565, 79.915),
-        'right_wrist': (-1.983, -0.378), 'left_clavicle': (-8.878, 9.933),
-        'left_shoulder': (28.873, 4.708, 7.313), 'left_elbow': (41.908, 17.154),
+        'spine_lumbar': (53.23, 10.385, 2.287), 'spine_thoracic': (-13.453, 6.853, 10.69),
+        'neck': (35.0, 7.31, 5.843), 'head': (15.0, -2.437), 'right_clavicle': (-8.766, 14.811),
+        'right_shoulder': (38.176, -2.212, 15.576), 'right_elbow': (32.738, 79.926),
+        'right_wrist': (-2.301, -0.327), 'left_clavicle': (-8.673, 9.804),
+        'left_shoulder': (31.852, 5.792, 8.978), 'left_elbow': (38.802, 17.154),
+        'left_wrist': (-1.095, 0.638),
     })
     # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (51.479, 10.726, 1.893), 'spine_thoracic': (-13.492, 6.793, 10.386),
-        'neck': (35.0, -20.418, 8.789), 'head': (15.0, 6.806), 'right_clavicle': (-8.682, 14.978),
-        'right_shoulder': (40.848, -2.943, 15.703), 'right_elbow': (25.461, 79.88),
-        'right_wrist': (-0.365, -0.714), 'left_clavicle': (-9.426, 10.091),
-        'left_shoulder': (32.571, 4.371, 9.025), 'left_elbow': (40.509, 17.158),
-        'left_wrist': (-1.105, 0.941),
+        'spine_lumbar': (51.542, 10.713, 1.905), 'spine_thoracic': (-13.482, 6.796, 10.396),
+        'neck': (35.0, -20.418, 8.789), 'head': (15.0, 6.806), 'right_clavicle': (-8.685, 14.972),
+        'right_shoulder': (40.738, -2.914, 15.7), 'right_elbow': (25.762, 79.882),
+        'right_wrist': (-0.444, -0.7), 'left_clavicle': (-9.401, 10.083),
+        'left_shoulder': (33.046, 4.548, 9.275), 'left_elbow': (40.03, 17.158),
+        'left_wrist': (-1.097, 0.926),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
@@ -456,13 +461,14 @@ def replace_fuel_filter_cad():
         'spine_lumbar': (51.154, 10.797, 1.86), 'neck': (35.0, -33.75, 9.944),
         'head': (15.0, 11.25), 'right_shoulder': (41.313, -3.019, 15.697),
         'right_elbow': (24.211, 79.874), 'right_wrist': (-0.039, -0.783),
-        'left_shoulder': (33.208, 4.289, 9.346), 'left_elbow': (40.263, 17.159),
+        'left_clavicle': (-9.524, 10.11), 'left_shoulder': (33.208, 4.289, 9.346),
+        'left_elbow': (40.263, 17.159),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
         'neck': (35.0, -33.518, 9.777), 'head': (15.0, 11.167),
         'right_shoulder': (41.311, -3.018, 15.689), 'right_elbow': (24.213, 79.856),
-        'right_wrist': (-0.028, -0.78), 'left_clavicle': (-9.524, 10.11),
+        'right_wrist': (-0.028, -0.78),
     })
     human.KeyJoints(8.2, {
         'neck': (35.0, -29.351, 6.763), 'head': (15.0, 9.679),
@@ -492,7 +498,7 @@ def replace_fuel_filter_cad():
     human.KeyJoints(8.7, {
         'neck': (35.0, 22.196, -30.518), 'head': (15.0, -8.731),
         'right_shoulder': (29.901, 3.957, -30.44), 'right_elbow': (33.308, -12.572),
-        'right_wrist': (54.018, 13.328),
+        'right_wrist': (54.018, 13.328), 'left_wrist': (-1.093, 0.982),
     })
     human.KeyJoints(8.8, {
         'neck': (35.0, 28.046, -34.749), 'head': (15.0, -10.82),
@@ -518,12 +524,12 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(9.3, {
-        'right_shoulder': (22.966, 22.717, -59.616), 'right_elbow': (12.732, -56.849),
-        'right_wrist': (56.371, 16.049),
+        'right_shoulder': (22.959, 22.708, -59.616), 'right_elbow': (12.753, -56.849),
+        'right_wrist': (56.398, 16.055),
     })
     human.KeyJoints(9.4, {
-        'right_shoulder': (23.155, 23.944, -60.187), 'right_elbow': (10.596, -57.364),
-        'right_wrist': (54.601, 15.764),
+        'right_shoulder': (23.126, 23.91, -60.188), 'right_elbow': (10.675, -57.364),
+        'right_wrist': (54.703, 15.787),
     })
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=9.488396, duration=0.072)
@@ -532,356 +538,336 @@ def replace_fuel_filter_cad():
         'right_elbow': (10.302, -57.432), 'right_wrist': (54.352, 15.723),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=9.560396, duration=0.434595)
-    human.KeyJoints(9.6, {'neck': (34.998, 29.161, -35.909)})
-    human.KeyJoints(9.7, {'neck': (34.975, 28.315, -38.63)})
+    human.LookAt((-40.0, 10.0, 60.0), start=9.560396, duration=0.4)
+    human.KeyJoints(9.6, {'neck': (34.998, 29.145, -35.96)})
+    human.KeyJoints(9.7, {'neck': (34.971, 28.172, -39.089)})
     human.KeyJoints(9.8, {
         'spine_lumbar': (51.154, 10.797, 1.86), 'spine_thoracic': (-13.469, 6.79, 10.364),
-        'neck': (34.927, 27.033, -42.755), 'left_shoulder': (33.208, 4.289, 9.346),
+        'neck': (34.916, 26.764, -43.619), 'left_shoulder': (33.208, 4.289, 9.346),
         'left_elbow': (40.263, 17.159), 'left_wrist': (-1.093, 0.982),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.9, {
-        'spine_lumbar': (51.209, 10.855, 1.755), 'spine_thoracic': (-13.415, 6.699, 10.114),
-        'neck': (34.855, 25.876, -46.477), 'left_clavicle': (-9.523, 10.14),
-        'left_shoulder': (32.58, 4.487, 9.285), 'left_elbow': (41.136, 17.39),
-        'left_wrist': (-1.453, 1.1),
+        'spine_lumbar': (51.223, 10.869, 1.728), 'spine_thoracic': (-13.42, 6.675, 10.049),
+        'neck': (34.832, 25.642, -47.231), 'left_clavicle': (-9.524, 10.148),
+        'left_shoulder': (33.25, 4.313, 9.468), 'left_elbow': (40.18, 17.451),
+        'left_wrist': (-1.546, 1.13),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.99499, duration=2.097397)
+    human.LookAt((10.0, 25.0, 95.0), start=9.960396, duration=1.931992)
     human.KeyJoints(10.0, {
-        'spine_lumbar': (51.73, 11.397, 0.761), 'spine_thoracic': (-12.899, 5.832, 7.734),
-        'neck': (34.761, 25.412, -47.975), 'right_wrist': (54.476, 15.752),
-        'left_clavicle': (-9.522, 10.429), 'left_shoulder': (26.624, 6.353, 8.711),
-        'left_elbow': (49.422, 19.596), 'left_wrist': (-4.875, 2.221),
+        'spine_lumbar': (51.833, 11.504, 0.566), 'spine_thoracic': (-12.982, 5.661, 7.265),
+        'neck': (34.618, 25.973, -46.487), 'head': (15.0, -11.238), 'right_wrist': (54.476, 15.752),
+        'left_clavicle': (-9.523, 10.485), 'left_shoulder': (33.623, 4.528, 10.544),
+        'left_elbow': (39.44, 20.031), 'left_wrist': (-5.548, 2.441),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (53.007, 12.725, -1.671), 'spine_thoracic': (-11.633, 3.709, 1.909),
-        'neck': (34.264, 27.612, -41.903), 'head': (15.0, -11.203),
-        'right_elbow': (10.398, -57.432), 'left_clavicle': (-9.517, 11.134),
-        'left_shoulder': (12.342, 10.528, 7.512), 'left_elbow': (69.233, 24.994),
-        'left_wrist': (-13.246, 4.963),
+        'spine_lumbar': (53.204, 12.93, -2.045), 'spine_thoracic': (-11.965, 3.381, 1.013),
+        'neck': (33.715, 30.342, -33.419), 'right_elbow': (10.398, -57.432),
+        'left_clavicle': (-9.521, 11.241), 'left_shoulder': (34.474, 5.046, 12.957),
+        'left_elbow': (37.726, 25.824), 'left_wrist': (-14.52, 5.38),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (54.88, 14.674, -5.241), 'spine_thoracic': (-9.754, 0.591, -6.637),
-        'neck': (33.483, 31.494, -29.317), 'left_clavicle': (-9.511, 12.169),
-        'left_shoulder': (-6.197, 14.182, 7.073), 'left_elbow': (94.714, 32.911),
-        'left_wrist': (-25.494, 8.975),
+        'spine_lumbar': (55.121, 14.924, -5.691), 'spine_thoracic': (-10.294, 0.173, -7.728),
+        'neck': (33.046, 33.718, -17.217), 'head': (15.0, -11.073),
+        'left_shoulder': (35.832, 6.001, 16.307), 'left_elbow': (34.945, 33.914),
+        'left_wrist': (-26.906, 9.432),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (57.415, 17.311, -10.066), 'spine_thoracic': (-6.804, -3.703, -18.198),
-        'neck': (33.042, 33.74, -16.685), 'head': (15.0, -11.073),
-        'left_clavicle': (-9.518, 13.563), 'left_shoulder': (-15.013, 11.41, 11.021),
-        'left_elbow': (107.202, 43.58), 'left_wrist': (-41.474, 14.201),
+        'spine_lumbar': (57.174, 17.06, -9.581), 'spine_thoracic': (-7.373, -3.404, -17.07),
+        'neck': (35.0, 33.75, -6.272), 'head': (15.0, -11.245), 'left_clavicle': (-9.538, 13.401),
+        'left_shoulder': (38.472, 7.665, 19.728), 'left_elbow': (30.339, 42.478),
+        'left_wrist': (-38.984, 13.363),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (58.72, 18.669, -12.546), 'spine_thoracic': (-3.731, -6.204, -24.146),
-        'neck': (35.0, 33.75, -7.566), 'head': (15.0, -11.219), 'left_clavicle': (-9.59, 14.275),
-        'left_shoulder': (3.246, 11.183, 19.186), 'left_elbow': (84.322, 48.366),
-        'left_wrist': (-49.544, 12.521),
-    })
-    human.KeyJoints(10.5, {
-        'spine_lumbar': (59.36, 19.334, -13.766), 'spine_thoracic': (-0.15, -7.823, -27.066),
-        'neck': (34.999, 33.676, -1.46), 'head': (14.999, -11.214),
-        'left_clavicle': (-9.723, 14.63), 'left_shoulder': (23.558, 9.097, 18.585),
-        'left_elbow': (55.336, 51.28), 'left_wrist': (-47.229, 16.02),
-    })
-    human.KeyJoints(10.6, {
-        'spine_lumbar': (59.752, 19.742, -14.519), 'spine_thoracic': (3.522, -9.097, -28.86),
-        'neck': (34.643, 19.736, 3.796), 'head': (14.696, -4.44), 'left_clavicle': (-9.877, 14.854),
-        'left_shoulder': (42.031, 10.869, 21.122), 'left_elbow': (29.476, 52.577),
-        'left_wrist': (-44.925, 15.226),
+        'spine_lumbar': (58.869, 18.823, -12.802), 'spine_thoracic': (-1.72, -6.893, -24.796),
+        'neck': (34.914, 29.833, 0.919), 'head': (14.926, -9.347),
+        'left_clavicle': (-9.687, 14.328), 'left_shoulder': (44.887, 10.022, 22.055),
+        'left_elbow': (22.102, 49.245), 'left_wrist': (-44.789, 15.212),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
-    human.KeyJoints(10.7, {
-        'spine_lumbar': (59.953, 19.951, -14.909), 'spine_thoracic': (5.799, -9.827, -29.784),
-        'neck': (33.67, -2.604, 8.072), 'head': (13.898, 6.416),
-        'left_shoulder': (52.74, 12.085, 22.6), 'left_elbow': (14.357, 53.202),
-        'left_wrist': (-43.074, 14.598),
+    human.KeyJoints(10.5, {
+        'spine_lumbar': (59.783, 19.774, -14.574), 'spine_thoracic': (4.526, -9.353, -28.996),
+        'neck': (34.019, 3.483, 7.039), 'head': (14.181, 3.458), 'left_clavicle': (-9.926, 14.867),
+        'left_shoulder': (52.85, 11.903, 22.819), 'left_elbow': (13.378, 52.584),
+        'left_wrist': (-43.504, 14.743),
     })
-    human.KeyJoints(10.8, {
-        'spine_thoracic': (6.343, -9.999, -29.999), 'neck': (31.711, -11.082, 9.295),
-        'head': (12.408, 10.504), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (55.344, 12.35, 22.952), 'left_elbow': (10.658, 53.345),
-        'left_wrist': (-42.474, 14.399),
+    human.KeyJoints(10.6, {
+        'spine_lumbar': (59.999, 19.999, -14.999), 'spine_thoracic': (6.338, -9.998, -29.997),
+        'neck': (31.884, -11.127, 9.327), 'head': (12.531, 10.534), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (55.214, 12.401, 22.95), 'left_elbow': (10.869, 53.343),
+        'left_wrist': (-42.732, 14.478),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=10.816383, duration=0.2628)
-    human.KeyJoints(10.9, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.035, -10.915, 9.172),
-        'head': (11.929, 10.394),
+    human.Grasp('left_hand', 'close', start=10.616383, duration=0.2628)
+    human.KeyJoints(10.7, {
+        'neck': (31.035, -10.915, 9.172), 'head': (11.929, 10.394),
+        'left_shoulder': (55.353, 12.351, 22.953), 'left_elbow': (10.645, 53.346),
+        'left_wrist': (-42.471, 14.398),
     })
-    human.KeyJoints(11.0, {'neck': (31.035, -10.915, 9.172)})
+    human.KeyJoints(10.8, {'neck': (31.035, -10.915, 9.172)})
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
-    human.KeyJoints(11.1, {
+    human.KeyJoints(10.9, {
         'neck': (31.062, -10.882, 9.571), 'head': (11.95, 10.4),
         'left_shoulder': (55.319, 12.362, 22.933), 'left_elbow': (10.712, 53.342),
         'left_wrist': (-42.502, 14.406),
     })
-    human.KeyJoints(11.2, {
+    human.KeyJoints(11.0, {
         'neck': (31.788, -9.988, 20.421), 'head': (12.516, 10.563),
         'left_shoulder': (51.844, 13.316, 20.011), 'left_elbow': (17.968, 52.709),
         'left_wrist': (-43.981, 14.619),
     })
-    human.KeyJoints(11.3, {
+    human.KeyJoints(11.1, {
         'neck': (33.061, -8.42, 39.446), 'left_shoulder': (42.047, 15.99, 11.682),
         'left_elbow': (37.995, 50.892), 'left_wrist': (-47.928, 15.149),
     })
-    human.KeyJoints(11.4, {
+    human.KeyJoints(11.2, {
         'neck': (34.28, -6.92, 57.657), 'head': (14.458, 11.123),
         'left_shoulder': (28.711, 19.587, 0.21), 'left_elbow': (62.099, 48.308),
         'left_wrist': (-52.714, 15.699),
     })
-    human.KeyJoints(11.5, {
+    human.KeyJoints(11.3, {
         'neck': (34.843, -6.226, 66.069), 'head': (14.896, 11.25),
         'left_shoulder': (11.306, 24.056, -15.025), 'left_elbow': (82.625, 44.517),
         'left_wrist': (-57.205, 15.679),
     })
-    human.KeyJoints(11.6, {
+    human.KeyJoints(11.4, {
         'left_shoulder': (-9.316, 28.975, -33.66), 'left_elbow': (89.784, 39.126),
         'left_wrist': (-59.844, 13.61),
     })
-    human.KeyJoints(11.7, {
+    human.KeyJoints(11.5, {
         'left_shoulder': (-26.502, 34.445, -52.008), 'left_elbow': (89.058, 33.99),
         'left_wrist': (-61.402, 10.101),
     })
-    human.KeyJoints(11.8, {
+    human.KeyJoints(11.6, {
         'left_shoulder': (-34.051, 39.526, -66.481), 'left_elbow': (92.753, 31.661),
         'left_wrist': (-63.966, 8.358),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
-    human.KeyJoints(11.9, {
+    human.KeyJoints(11.7, {
         'left_shoulder': (-35.53, 41.737, -73.593), 'left_elbow': (97.157, 31.243),
         'left_wrist': (-65.979, 8.16),
     })
-    human.KeyJoints(12.0, {
+    human.KeyJoints(11.8, {
         'left_shoulder': (-35.785, 42.239, -75.298), 'left_elbow': (98.337, 31.175),
         'left_wrist': (-66.499, 8.144),
     })
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=12.020387, duration=0.072)
+    human.Grasp('left_hand', 'open', start=11.820387, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.092387, duration=0.572407)
-    human.KeyJoints(12.2, {'neck': (34.858, -6.228, 66.114)})
-    human.KeyJoints(12.3, {
+    human.LookAt((10.0, 25.0, 95.0), start=11.892387, duration=0.572407)
+    human.KeyJoints(12.0, {'neck': (34.858, -6.228, 66.114)})
+    human.KeyJoints(12.1, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.345, -10.0, -30.0),
-        'right_shoulder': (23.149, 24.071, -60.264), 'right_elbow': (10.398, -57.432),
-        'left_shoulder': (-35.787, 42.242, -75.308), 'left_elbow': (98.344, 31.175),
+        'right_shoulder': (23.149, 24.071, -60.264),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
-    human.KeyJoints(12.4, {
-        'spine_lumbar': (60.0, 19.871, -14.935), 'spine_thoracic': (6.28, -9.936, -29.936),
-        'right_clavicle': (-8.675, 15.0), 'right_shoulder': (23.142, 23.902, -60.113),
-        'right_elbow': (10.636, -57.408), 'right_wrist': (54.492, 15.742),
-        'left_shoulder': (-35.787, 41.9, -75.194), 'left_elbow': (98.694, 31.175),
+    human.KeyJoints(12.2, {
+        'spine_lumbar': (60.0, 19.872, -14.935), 'spine_thoracic': (6.291, -9.936, -29.937),
+        'right_clavicle': (-8.675, 15.0), 'right_shoulder': (23.222, 23.937, -60.201),
+        'right_elbow': (10.444, -57.409), 'right_wrist': (54.489, 15.743),
     })
-    human.KeyJoints(12.5, {
-        'spine_lumbar': (59.989, 16.722, -13.341), 'spine_thoracic': (4.694, -8.365, -28.382),
+    human.KeyJoints(12.3, {
+        'spine_lumbar': (59.996, 16.696, -13.328), 'spine_thoracic': (4.953, -8.352, -28.37),
         'head': (14.979, 11.25), 'right_clavicle': (-8.78, 14.999),
-        'right_shoulder': (22.994, 19.745, -56.455), 'right_elbow': (16.452, -56.815),
-        'right_wrist': (54.868, 15.506), 'left_shoulder': (-35.813, 33.584, -72.455),
-        'left_elbow': (107.203, 31.175),
+        'right_shoulder': (25.035, 20.613, -58.651), 'right_elbow': (11.591, -56.84),
+        'right_wrist': (54.799, 15.525),
     })
-    human.KeyJoints(12.6, {
-        'spine_lumbar': (59.95, 8.795, -9.332), 'spine_thoracic': (0.703, -4.413, -24.47),
-        'neck': (34.994, -6.275, 66.475), 'right_shoulder': (23.161, 8.866, -48.316),
-        'right_elbow': (30.748, -55.322), 'right_wrist': (55.819, 14.912),
-        'left_shoulder': (-36.515, 14.451, -67.451), 'left_elbow': (126.074, 31.175),
+    human.KeyJoints(12.4, {
+        'spine_lumbar': (59.971, 8.358, -9.111), 'spine_thoracic': (1.389, -4.195, -24.259),
+        'neck': (34.994, -6.275, 66.475), 'right_shoulder': (29.831, 11.832, -54.56),
+        'right_elbow': (14.621, -55.339), 'right_wrist': (55.632, 14.951),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.664794, duration=0.358044)
-    human.KeyJoints(12.7, {
-        'spine_lumbar': (59.667, -1.839, -3.952), 'spine_thoracic': (-4.649, 0.904, -19.225),
-        'neck': (34.895, -6.774, 64.859), 'right_clavicle': (-9.358, 14.957),
-        'right_shoulder': (27.144, -6.351, -42.328), 'right_elbow': (43.903, -53.307),
-        'right_wrist': (57.147, 14.114), 'left_shoulder': (-39.067, 3.124, -68.774),
-        'left_elbow': (136.223, 31.175),
+    human.LookAt((10.0, 25.0, 95.0), start=12.464794, duration=0.358044)
+    human.KeyJoints(12.5, {
+        'spine_lumbar': (59.693, -2.676, -3.529), 'spine_thoracic': (-3.671, 1.322, -18.818),
+        'neck': (34.895, -6.774, 64.859), 'right_clavicle': (-9.379, 14.956),
+        'right_shoulder': (36.35, -0.263, -48.975), 'right_elbow': (18.764, -53.303),
+        'right_wrist': (56.879, 14.161),
     })
-    human.KeyJoints(12.8, {
-        'spine_lumbar': (57.93, -11.72, 1.043), 'spine_thoracic': (-9.618, 5.929, -14.371),
-        'neck': (33.777, -11.869, 47.441), 'right_clavicle': (-9.434, 14.724),
-        'right_shoulder': (36.76, -17.739, -40.768), 'right_elbow': (39.557, -51.359),
-        'right_wrist': (58.733, 13.359), 'left_shoulder': (-39.182, 18.914, -74.02),
-        'left_elbow': (121.48, 31.175),
+    human.KeyJoints(12.6, {
+        'spine_lumbar': (57.996, -12.269, 1.321), 'spine_thoracic': (-8.846, 6.2, -14.105),
+        'neck': (33.777, -11.869, 47.441), 'right_clavicle': (-9.454, 14.729),
+        'right_shoulder': (42.058, -12.49, -43.601), 'right_elbow': (22.696, -51.373),
+        'right_wrist': (58.512, 13.401),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
-    human.KeyJoints(12.9, {
-        'spine_lumbar': (55.263, -17.453, 3.938), 'spine_thoracic': (-12.496, 8.939, -11.581),
-        'neck': (32.271, -18.719, 23.983), 'right_clavicle': (-9.23, 14.362),
-        'right_shoulder': (43.785, -22.393, -39.574), 'right_elbow': (29.184, -50.141),
-        'right_wrist': (60.053, 12.907), 'left_shoulder': (-36.688, 36.898, -75.21),
-        'left_elbow': (103.76, 31.175),
+    human.KeyJoints(12.7, {
+        'spine_lumbar': (55.291, -17.598, 4.011), 'spine_thoracic': (-12.3, 9.011, -11.51),
+        'neck': (32.271, -18.719, 23.983), 'right_clavicle': (-9.237, 14.364),
+        'right_shoulder': (44.991, -21.046, -40.129), 'right_elbow': (25.149, -50.145),
+        'right_wrist': (59.994, 12.917),
     })
-    human.KeyJoints(13.0, {
-        'spine_lumbar': (54.361, -19.015, 4.726), 'spine_thoracic': (-13.28, 9.77, -10.823),
+    human.KeyJoints(12.8, {
+        'spine_lumbar': (54.361, -19.016, 4.727), 'spine_thoracic': (-13.278, 9.77, -10.822),
         'neck': (31.431, -22.537, 10.901), 'right_clavicle': (-9.148, 14.239),
-        'right_shoulder': (45.725, -23.535, -39.146), 'right_elbow': (25.863, -49.8),
-        'right_wrist': (60.455, 12.782), 'left_shoulder': (-35.794, 42.198, -75.307),
-        'left_elbow': (98.389, 31.175),
+        'right_shoulder': (45.735, -23.523, -39.151), 'right_elbow': (25.83, -49.801),
+        'right_wrist': (60.455, 12.782),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=13.022839, duration=0.072)
+    human.Grasp('right_hand', 'close', start=12.822839, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.1, {
+    human.KeyJoints(12.9, {
         'neck': (31.483, -22.443, 11.072), 'right_shoulder': (45.741, -23.544, -39.143),
         'right_elbow': (25.835, -49.762), 'right_wrist': (60.459, 12.781),
     })
-    human.KeyJoints(13.2, {
+    human.KeyJoints(13.0, {
         'right_shoulder': (45.203, -22.445, -39.538), 'right_elbow': (26.712, -37.048),
         'right_wrist': (60.9, 13.081),
     })
-    human.KeyJoints(13.3, {
+    human.KeyJoints(13.1, {
         'right_shoulder': (44.803, -20.2, -40.159), 'right_elbow': (29.33, -9.665),
         'right_wrist': (62.396, 13.952),
     })
-    human.KeyJoints(13.4, {
+    human.KeyJoints(13.2, {
         'right_shoulder': (45.556, -18.403, -40.388), 'right_elbow': (33.023, 20.426),
         'right_wrist': (65.768, 15.419),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.5, {
+    human.KeyJoints(13.3, {
         'right_shoulder': (46.91, -17.708, -40.297), 'right_elbow': (35.434, 41.332),
         'right_wrist': (69.487, 16.648),
     })
-    human.KeyJoints(13.6, {
+    human.KeyJoints(13.4, {
         'right_shoulder': (48.213, -17.555, -40.136), 'right_elbow': (36.721, 55.404),
         'right_wrist': (72.465, 17.368),
     })
-    human.KeyJoints(13.7, {
+    human.KeyJoints(13.5, {
         'head': (14.94, 11.156), 'right_shoulder': (48.933, -18.3, -39.835),
         'right_elbow': (39.063, 68.09), 'right_wrist': (73.438, 17.735),
     })
-    human.KeyJoints(13.8, {
+    human.KeyJoints(13.6, {
         'right_shoulder': (49.096, -19.359, -39.559), 'right_elbow': (41.393, 77.052),
         'right_wrist': (72.894, 17.775),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.9, {
+    human.KeyJoints(13.7, {
         'right_shoulder': (49.165, -19.687, -39.48), 'right_elbow': (42.012, 79.795),
         'right_wrist': (72.725, 17.816),
     })
-    human.KeyJoints(14.0, {
+    human.KeyJoints(13.8, {
         'right_shoulder': (48.878, -17.702, -40.005), 'right_elbow': (37.504, 62.82),
         'right_wrist': (73.736, 17.764),
     })
-    human.KeyJoints(14.1, {
+    human.KeyJoints(13.9, {
         'right_shoulder': (46.134, -17.997, -40.366), 'right_elbow': (34.271, 30.751),
         'right_wrist': (67.47, 16.025),
     })
-    human.KeyJoints(14.2, {
+    human.KeyJoints(14.0, {
         'right_shoulder': (44.896, -19.489, -40.291), 'right_elbow': (30.615, 0.841),
         'right_wrist': (63.362, 14.415),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.3, {
+    human.KeyJoints(14.1, {
         'right_shoulder': (44.803, -20.201, -40.159), 'right_elbow': (29.329, -9.673),
         'right_wrist': (62.396, 13.951),
     })
-    human.KeyJoints(14.4, {
+    human.KeyJoints(14.2, {
         'right_shoulder': (45.086, -19.039, -40.35), 'right_elbow': (31.454, 7.992),
         'right_wrist': (64.094, 14.744),
     })
-    human.KeyJoints(14.5, {
+    human.KeyJoints(14.3, {
         'right_shoulder': (46.821, -17.731, -40.307), 'right_elbow': (35.322, 40.244),
         'right_wrist': (69.269, 16.585),
     })
-    human.KeyJoints(14.6, {
+    human.KeyJoints(14.4, {
         'right_shoulder': (48.957, -18.502, -39.78), 'right_elbow': (39.549, 69.829),
         'right_wrist': (73.335, 17.733),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.7, {
+    human.KeyJoints(14.5, {
         'right_shoulder': (49.158, -19.654, -39.487), 'right_elbow': (41.953, 79.523),
         'right_wrist': (72.742, 17.811),
     })
-    human.KeyJoints(14.8, {
+    human.KeyJoints(14.6, {
         'right_shoulder': (48.825, -17.583, -40.046), 'right_elbow': (37.15, 61.183),
         'right_wrist': (73.719, 17.589),
     })
-    human.KeyJoints(14.9, {
+    human.KeyJoints(14.7, {
         'right_shoulder': (46.009, -18.066, -40.374), 'right_elbow': (34.037, 28.763),
         'right_wrist': (67.121, 15.907),
     })
-    human.KeyJoints(15.0, {
+    human.KeyJoints(14.8, {
         'right_shoulder': (44.876, -19.573, -40.278), 'right_elbow': (30.448, -0.483),
         'right_wrist': (63.227, 14.353),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.1, {
+    human.KeyJoints(14.9, {
         'right_shoulder': (44.803, -20.177, -40.164), 'right_elbow': (29.367, -9.347),
         'right_wrist': (62.422, 13.965),
     })
-    human.KeyJoints(15.2, {
+    human.KeyJoints(15.0, {
         'right_shoulder': (45.135, -18.945, -40.359), 'right_elbow': (31.664, 9.654),
         'right_wrist': (64.294, 14.829),
     })
-    human.KeyJoints(15.3, {
+    human.KeyJoints(15.1, {
         'right_shoulder': (46.984, -17.69, -40.29), 'right_elbow': (35.526, 42.227),
         'right_wrist': (69.669, 16.699),
     })
-    human.KeyJoints(15.4, {
+    human.KeyJoints(15.2, {
         'right_shoulder': (48.977, -18.653, -39.739), 'right_elbow': (39.899, 71.118),
         'right_wrist': (73.258, 17.735),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.5, {
+    human.KeyJoints(15.3, {
         'right_shoulder': (49.148, -19.609, -39.498), 'right_elbow': (41.869, 79.143),
         'right_wrist': (72.765, 17.805),
     })
-    human.KeyJoints(15.6, {
+    human.KeyJoints(15.4, {
         'right_shoulder': (48.643, -17.569, -40.073), 'right_elbow': (37.031, 59.497),
         'right_wrist': (73.355, 17.531),
     })
-    human.KeyJoints(15.7, {
+    human.KeyJoints(15.5, {
         'right_shoulder': (45.891, -18.139, -40.38), 'right_elbow': (33.802, 26.786),
         'right_wrist': (66.784, 15.789),
     })
-    human.KeyJoints(15.8, {
+    human.KeyJoints(15.6, {
         'right_shoulder': (44.859, -19.655, -40.264), 'right_elbow': (30.291, -1.735),
         'right_wrist': (63.102, 14.295),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.9, {
+    human.KeyJoints(15.7, {
         'right_shoulder': (44.804, -20.146, -40.171), 'right_elbow': (29.418, -8.914),
         'right_wrist': (62.457, 13.982),
     })
-    human.KeyJoints(16.0, {
+    human.KeyJoints(15.8, {
         'right_shoulder': (45.19, -18.851, -40.368), 'right_elbow': (31.881, 11.363),
         'right_wrist': (64.508, 14.919),
     })
-    human.KeyJoints(16.1, {
+    human.KeyJoints(15.9, {
         'right_shoulder': (47.151, -17.654, -40.271), 'right_elbow': (35.723, 44.197),
         'right_wrist': (70.073, 16.809),
     })
-    human.KeyJoints(16.2, {
+    human.KeyJoints(16.0, {
         'right_shoulder': (48.998, -18.797, -39.702), 'right_elbow': (40.222, 72.334),
         'right_wrist': (73.184, 17.738),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=16.271309, duration=0.072)
-    human.KeyJoints(16.3, {
+    human.Grasp('right_hand', 'open', start=16.071309, duration=0.072)
+    human.KeyJoints(16.1, {
         'right_shoulder': (49.171, -19.711, -39.474), 'right_elbow': (42.057, 80.0),
         'right_wrist': (72.712, 17.82),
     })
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=16.343309, duration=0.384161)
-    human.KeyJoints(16.4, {
+    human.LookAt((10.0, 25.0, 95.0), start=16.143309, duration=0.384161)
+    human.KeyJoints(16.2, {
         'neck': (31.488, -22.448, 11.082), 'right_shoulder': (48.393, -20.58, -39.399),
         'right_elbow': (38.378, 80.0), 'right_wrist': (69.933, 16.677),
     })
-    human.KeyJoints(16.5, {
+    human.KeyJoints(16.3, {
         'head': (14.962, 11.19), 'right_shoulder': (47.021, -22.113, -39.266),
         'right_elbow': (31.89, 80.0), 'right_wrist': (65.032, 14.662),
     })
-    human.KeyJoints(16.6, {
+    human.KeyJoints(16.4, {
         'right_shoulder': (45.741, -23.544, -39.143), 'right_elbow': (25.835, 80.0),
         'right_wrist': (60.459, 12.781),
     })
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(16.8, {'neck': (31.57, -22.526, 11.241)})
-    human.KeyJoints(17.0, {'right_elbow': (25.802, 79.979)})
-    human.KeyJoints(17.9, {'head': (15.0, 11.25)})
-    human.KeyJoints(19.6, {
+    human.KeyJoints(16.6, {'neck': (31.57, -22.526, 11.241)})
+    human.KeyJoints(16.8, {'right_elbow': (25.802, 79.979)})
+    human.KeyJoints(17.7, {'head': (15.0, 11.25)})
+    human.KeyJoints(19.4, {
         'spine_lumbar': (54.353, -19.028, 4.732), 'spine_thoracic': (-13.286, 9.776, -10.817),
         'neck': (31.57, -22.526, 11.241), 'head': (15.0, 11.25), 'right_clavicle': (-9.147, 14.238),
         'right_shoulder': (45.741, -23.544, -39.143), 'right_elbow': (25.835, 80.0),
@@ -891,7 +877,7 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: posture on root
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: gaze on head
-    human.KeyJoints(19.7, {
+    human.KeyJoints(19.5, {
         'spine_lumbar': (44.11, -15.529, 3.823), 'spine_thoracic': (-9.899, 7.45, -8.739),
         'neck': (24.276, -17.322, 8.644), 'head': (11.535, 8.651),
         'right_clavicle': (-7.39, 11.439), 'right_shoulder': (38.803, -17.484, -35.354),
@@ -899,7 +885,7 @@ def replace_fuel_filter_cad():
         'left_clavicle': (-8.079, 12.051), 'left_shoulder': (-27.037, 35.608, -64.541),
         'left_elbow': (85.869, 28.429), 'left_wrist': (-53.441, 6.585),
     })
-    human.KeyJoints(19.8, {
+    human.KeyJoints(19.6, {
         'spine_lumbar': (23.462, -7.594, 1.803), 'spine_thoracic': (-2.874, 2.76, -4.122),
         'neck': (9.391, -6.701, 3.344), 'head': (4.462, 3.346), 'right_clavicle': (-3.486, 5.37),
         'right_shoulder': (22.989, -4.274, -27.172), 'right_elbow': (30.537, 40.927),
@@ -907,8 +893,8 @@ def replace_fuel_filter_cad():
         'left_shoulder': (-8.191, 20.826, -41.006), 'left_elbow': (58.513, 22.456),
         'left_wrist': (-25.111, 3.089),
     })
-    human.KeyRoot(19.9, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.9, {
+    human.KeyRoot(19.7, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.7, {
         'spine_lumbar': (11.206, -0.248, 0.18), 'spine_thoracic': (1.882, -0.024, -0.41),
         'neck': (0.003, -0.002, 0.001), 'head': (0.002, 0.001), 'right_clavicle': (-0.347, 0.493),
         'right_shoulder': (10.131, 6.329, -20.605), 'right_elbow': (33.816, 19.366),
@@ -918,8 +904,8 @@ def replace_fuel_filter_cad():
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
-    human.KeyRoot(20.0, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.0, {
+    human.KeyRoot(19.8, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.8, {
         'spine_lumbar': (11.51, 9.923, 0.0), 'spine_thoracic': (1.86, 1.957, 0.0),
         'neck': (-0.102, 0.073, -0.036), 'right_clavicle': (0.0, -0.038),
         'right_shoulder': (8.668, 7.511, -19.905), 'right_elbow': (34.223, 17.019),
@@ -928,16 +914,16 @@ def replace_fuel_filter_cad():
         'left_wrist': (0.171, -0.04), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
         'left_hip': (30.631, 0.0, 0.0), 'left_knee': (132.66,),
     })
-    human.KeyRoot(20.1, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.1, {
+    human.KeyRoot(19.9, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.9, {
         'spine_lumbar': (-6.192, 20.0, 0.0), 'spine_thoracic': (-3.157, 9.769, 0.0),
         'left_elbow': (34.185, 17.159), 'right_hip': (30.975, -0.002, -0.001),
         'right_knee': (133.004,), 'right_ankle': (15.162, 0.004),
         'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,), 'left_ankle': (15.162, -0.004),
         'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(20.2, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.2, {
+    human.KeyRoot(20.0, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.0, {
         'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.974, 9.982, 0.0),
         'right_shoulder': (8.665, 7.526, -19.95), 'right_elbow': (34.21, 17.094),
         'right_wrist': (-0.071, -0.054), 'left_shoulder': (8.707, 7.534, -19.939),
@@ -946,8 +932,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.087, 0.295), 'left_hip': (28.49, -2.112, 2.219), 'left_knee': (132.068,),
         'left_ankle': (17.195, 2.945), 'left_toes': (85.798,),
     })
-    human.KeyRoot(20.3, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.3, {
+    human.KeyRoot(20.1, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.1, {
         'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 9.989, 0.0),
         'right_shoulder': (8.436, 7.035, -19.833), 'right_elbow': (35.901, 17.132),
         'right_wrist': (-0.104, 0.352), 'left_shoulder': (7.37, 7.443, -20.104),
@@ -956,8 +942,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.135, 0.289), 'left_hip': (32.614, -4.47, 3.326), 'left_knee': (134.97,),
         'left_ankle': (-0.061, 5.498), 'right_toes': (86.572,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(20.4, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.4, {
+    human.KeyRoot(20.2, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.2, {
         'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 9.996, 0.0),
         'right_shoulder': (8.057, 6.089, -19.579), 'right_elbow': (39.1, 17.17),
         'right_wrist': (-0.192, 1.125), 'left_shoulder': (4.973, 7.356, -20.417),
@@ -966,8 +952,8 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.11, 0.184), 'left_hip': (41.403, -17.888, 7.84),
         'left_ankle': (-30.511, 18.414), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(20.5, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.5, {
+    human.KeyRoot(20.3, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.3, {
         'spine_lumbar': (-25.476, 20.0, 0.0), 'spine_thoracic': (-10.903, 10.0, 0.0),
         'right_shoulder': (8.096, 5.866, -19.508), 'right_elbow': (39.802, 17.188),
         'right_wrist': (-0.194, 1.298), 'left_shoulder': (4.397, 7.367, -20.51),
@@ -976,16 +962,16 @@ def replace_fuel_filter_cad():
         'left_hip': (57.423, -20.119, 29.089), 'left_knee': (135.0,),
         'left_ankle': (-48.832, 8.202), 'left_toes': (70.209,),
     })
-    human.KeyRoot(20.6, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.6, {
+    human.KeyRoot(20.4, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.4, {
         'spine_lumbar': (-23.91, 20.0, 0.0), 'spine_thoracic': (-14.842, 10.0, 0.0),
         'right_shoulder': (8.276, 6.702, -19.771), 'left_elbow': (38.809, 17.189),
         'right_hip': (28.271, -0.289, -0.112), 'right_knee': (130.289,),
         'left_hip': (86.119, -23.232, 26.697), 'left_knee': (134.934,),
         'left_ankle': (-45.269, 13.893), 'left_toes': (55.701,),
     })
-    human.KeyRoot(20.7, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.7, {
+    human.KeyRoot(20.5, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.5, {
         'spine_lumbar': (-16.434, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
@@ -994,122 +980,122 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.053, 0.198), 'left_hip': (106.363, -23.561, 21.269),
         'left_knee': (133.197,), 'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
     })
-    human.KeyRoot(20.8, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.8, {
+    human.KeyRoot(20.6, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.6, {
         'spine_lumbar': (-15.119, 20.0, 0.0), 'right_hip': (32.639, -0.2, -0.093),
         'right_knee': (134.651,), 'left_hip': (119.967, -25.0, 10.628), 'left_knee': (134.997,),
         'left_ankle': (-30.514, 21.747), 'left_toes': (33.665,),
     })
-    human.KeyRoot(20.9, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.9, {
+    human.KeyRoot(20.7, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.7, {
         'spine_lumbar': (-25.621, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'neck': (0.0, 0.0, 0.0), 'right_hip': (28.698, -0.214, -0.085), 'right_knee': (130.717,),
         'right_ankle': (15.049, 0.153), 'left_hip': (106.414, -25.0, 14.189),
         'left_knee': (133.37,), 'left_ankle': (-18.019, 29.277), 'right_toes': (86.836,),
         'left_toes': (40.113,),
     })
-    human.KeyRoot(21.0, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.0, {
+    human.KeyRoot(20.8, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.8, {
         'spine_lumbar': (-29.633, 20.0, 0.0), 'spine_thoracic': (-7.595, 10.0, 0.0),
         'right_hip': (28.189, -0.481, -0.185), 'right_knee': (130.238,),
         'right_ankle': (15.056, 0.313), 'left_hip': (99.669, -13.239, 8.826),
         'left_knee': (127.309,), 'left_ankle': (-16.285, 16.935), 'right_toes': (86.696,),
         'left_toes': (42.118,),
     })
-    human.KeyRoot(21.1, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.1, {
+    human.KeyRoot(20.9, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.9, {
         'spine_lumbar': (-6.473, 8.302, 0.0), 'spine_thoracic': (-4.013, 3.384, 0.0),
         'right_hip': (31.962, -0.038, -0.017), 'right_knee': (133.967,),
         'right_ankle': (15.046, 0.029), 'left_hip': (96.735, -0.177, 0.211),
         'left_knee': (127.733,), 'left_ankle': (9.607, 0.397), 'right_toes': (86.913,),
         'left_toes': (21.317,),
     })
-    human.KeyRoot(21.2, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.2, {
+    human.KeyRoot(21.0, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.0, {
         'spine_lumbar': (1.049, 0.0, 0.0), 'spine_thoracic': (0.163, 0.0, 0.0),
         'right_hip': (32.725, 0.0, 0.0), 'right_knee': (134.767,), 'right_ankle': (15.337, 0.0),
         'left_hip': (94.048, 0.0, 0.0), 'left_knee': (127.0,), 'left_ankle': (20.0, 0.0),
         'right_toes': (86.575,), 'left_toes': (12.93,),
     })
-    human.KeyRoot(21.3, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.3, {
+    human.KeyRoot(21.1, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.1, {
         'spine_lumbar': (11.398, 0.087, 0.0), 'spine_thoracic': (1.9, 0.015, 0.0),
         'right_hip': (35.735, -0.023, 0.058), 'right_knee': (131.627,),
         'right_ankle': (20.0, 0.063), 'left_hip': (89.746, 0.006, -0.043), 'left_knee': (117.9,),
         'left_ankle': (19.999, -0.043), 'right_toes': (75.79,), 'left_toes': (8.148,),
     })
-    human.KeyRoot(21.4, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.4, {
+    human.KeyRoot(21.2, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.2, {
         'spine_lumbar': (14.357, 2.873, 0.0), 'spine_thoracic': (2.375, 0.515, 0.0),
         'right_hip': (27.113, 0.156, 1.227), 'right_knee': (102.784,), 'right_ankle': (20.0, 1.237),
         'left_hip': (65.605, -0.374, -0.92), 'left_knee': (87.914,), 'left_ankle': (20.0, -0.994),
         'right_toes': (55.625,), 'left_toes': (2.34,),
     })
-    human.KeyRoot(21.5, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.5, {
+    human.KeyRoot(21.3, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.3, {
         'spine_lumbar': (-0.927, 9.644, 0.0), 'spine_thoracic': (-0.288, 1.74, 0.0),
         'right_hip': (9.259, 1.86, 2.393), 'right_knee': (72.145,), 'right_ankle': (20.0, 3.033),
         'left_hip': (46.408, -1.99, -2.09), 'left_knee': (66.387,), 'left_ankle': (19.999, -2.886),
         'right_toes': (42.883,), 'left_toes': (0.027,),
     })
-    human.KeyRoot(21.6, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.6, {
+    human.KeyRoot(21.4, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.4, {
         'spine_lumbar': (7.984, 14.755, 0.0), 'spine_thoracic': (1.059, 2.641, 0.0),
         'right_hip': (-2.9, 3.588, 1.523), 'right_knee': (42.98,), 'right_ankle': (20.0, 3.899),
         'left_hip': (33.685, -3.312, -2.205), 'left_knee': (40.45,), 'left_ankle': (6.829, -3.979),
         'right_toes': (25.897,),
     })
-    human.KeyRoot(21.7, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.7, {
+    human.KeyRoot(21.5, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.5, {
         'spine_lumbar': (21.829, 16.552, 0.0), 'spine_thoracic': (-4.174, 3.104, 0.0),
         'right_hip': (-6.868, 4.15, 0.957), 'right_knee': (31.478,), 'right_ankle': (18.509, 4.258),
         'left_hip': (28.254, -3.842, -2.062), 'left_knee': (26.967,), 'left_ankle': (-1.218, -4.36),
         'right_toes': (19.831,),
     })
-    human.KeyRoot(21.8, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.8, {
+    human.KeyRoot(21.6, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.6, {
         'spine_lumbar': (50.162, -0.761, 0.0), 'spine_thoracic': (3.4, -0.057, 0.0),
         'right_hip': (-14.98, 5.689, 3.64), 'right_knee': (27.272,), 'right_ankle': (-5.256, 6.746),
         'left_hip': (23.117, -6.034, -2.57), 'left_knee': (36.859,), 'left_ankle': (13.881, -6.558),
         'right_toes': (47.611,),
     })
-    human.KeyRoot(21.9, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.9, {
+    human.KeyRoot(21.7, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.7, {
         'spine_lumbar': (47.857, -2.919, 0.0), 'spine_thoracic': (7.438, -0.433, 0.0),
         'right_hip': (-14.91, 5.676, 5.662), 'right_knee': (27.02,),
         'right_ankle': (-17.847, 7.981), 'left_hip': (12.589, -6.581, -1.466),
         'left_knee': (19.87,), 'left_ankle': (7.365, -6.742), 'right_toes': (59.998,),
     })
-    human.KeyRoot(22.0, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.0, {
+    human.KeyRoot(21.8, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.8, {
         'spine_lumbar': (18.591, -1.1, 0.0), 'spine_thoracic': (6.071, -0.19, 0.0),
         'right_hip': (-14.907, 6.444, 4.463), 'right_knee': (28.859,),
         'right_ankle': (-6.571, 7.339), 'left_hip': (0.038, -7.194, -0.005), 'left_knee': (6.455,),
         'left_ankle': (6.418, -7.194), 'right_toes': (49.126,),
     })
-    human.KeyRoot(22.1, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.1, {
+    human.KeyRoot(21.9, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.9, {
         'spine_lumbar': (2.79, -1.045, 0.0), 'spine_thoracic': (0.496, -0.19, 0.0),
         'right_hip': (-2.004, 7.135, 2.848), 'right_knee': (38.171,),
         'right_ankle': (16.568, 7.702), 'left_hip': (-4.361, -7.282, 0.554), 'left_knee': (5.203,),
         'left_ankle': (9.528, -7.303), 'right_toes': (23.818,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(22.2, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.2, {
+    human.KeyRoot(22.0, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
+    human.KeyJoints(22.0, {
         'spine_lumbar': (2.697, -4.136, 0.0), 'spine_thoracic': (0.433, -0.746, 0.0),
         'right_hip': (3.502, 6.661, 0.71), 'right_knee': (23.67,), 'right_ankle': (17.784, 6.966),
         'left_hip': (-4.019, -6.514, 0.453), 'left_knee': (4.59,), 'left_ankle': (8.391, -6.476),
         'right_toes': (2.803,), 'left_toes': (0.139,),
     })
-    human.KeyRoot(22.3, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.3, {
+    human.KeyRoot(22.1, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
+    human.KeyJoints(22.1, {
         'spine_lumbar': (9.419, -9.439, 0.0), 'spine_thoracic': (1.543, -1.699, 0.0),
         'right_hip': (1.814, 1.934, 0.061), 'right_knee': (6.69,), 'right_ankle': (4.877, 1.935),
         'left_hip': (1.814, -1.934, -0.061), 'left_knee': (6.69,), 'left_ankle': (4.877, -1.935),
         'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(22.367309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.367309, {
+    human.KeyRoot(22.167309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
+    human.KeyJoints(22.167309, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

@@ -48,8 +48,6 @@ KEEP_PATH = 0.3  # ...on the way there: the hand may move out of the body's way
 PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
 CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
 CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
-PIN_SAMPLES = 17  # poses checked on each stretch of a torso reach for its held hands, ends included
-PIN_SLACK = 2e-4  # m a held hand may be off on them (the hold pass's own tolerance)
 
 
 def model_for(
@@ -155,32 +153,16 @@ def pinned_hands(
     """Goals that keep the other hand where it is, when it holds a site at the segments'
     start (``hold.holding``: from its contact until its next arm motion, a walk, or a release
     it does not take back): a reach that bends the trunk must not pull it off."""
-    from mtlc.passes.hold import ARM_HAND, held_contacts
+    from mtlc.passes.hold import ARM_HAND, holding
 
     t0 = segs[0].start
     mine = {f"{s.goal.effector[0]}_hand" for s in segs}  # a tool's tip moves its hand too
-    held = held_contacts(state.ir, t0, state.memo)
+    held = holding(state.ir, t0, state.memo)
     return [
-        Goal(hand, position=_held_point(state, held[track], hand, q0, root))
+        Goal(hand, position=state.site(hand, q0, root))
         for track, hand in ARM_HAND.items()
         if hand not in mine and track in held
     ]
-
-
-def _held_point(
-    state: PoseState, contact: Segment, hand: str, q0: FloatArray, root: Any
-) -> FloatArray:
-    """Where a held hand must stay: its site while its contact is still to be solved (the
-    approaches are solved before the contact pass takes each hand from its approach point onto
-    its site: pinned where it stood, a hand was kept 8 cm off the part it then grasped, and the
-    other hand's reach left it there) or once its contact reached it (where the hold pass keeps
-    it: the keyed pose between may leave it a few mm off, 5 mm on the fuel filter's bowl for a
-    P1 woman, which the hold pass takes back), else where the solved contact left it."""
-    if contact.goal.position is not None and (
-        contact.keyframes is None or contact.result.get("distance", np.inf) <= TOLERANCE
-    ):
-        return np.asarray(contact.goal.position, dtype=float)
-    return state.site(hand, q0, root)
 
 
 def pins_off(
@@ -219,23 +201,18 @@ def repin(
     q: FloatArray,
     pinned: list[Goal],
     root: tuple[FloatArray, FloatArray],
-    as_held: bool = False,
 ) -> FloatArray:
     """Poses ``q`` (B, D) with each pinned hand's arm re-solved onto where the hand rests.
 
     A reach that bends the trunk carries the other arm along; that arm alone (shoulder, elbow,
     wrist: dofs the reaching hand and the trunk do not use) then puts its hand back, so the
-    reaching hand's pose is not traded against it. ``as_held``: with the dofs the hold pass
-    moves on the frames (not the forearm's twist, which stays as interpolated).
+    reaching hand's pose is not traded against it.
     """
-    from mtlc.passes.hold import _arm_dofs
-
     out = np.array(q, dtype=float, copy=True)
     for goal in pinned:
         batch = Goal(goal.effector, position=np.tile(goal.position, (len(out), 1)))
-        dofs = _arm_dofs(skel, goal.effector) if as_held else None
         m = prepare(
-            skel, [goal.effector], out, reach="arm", dofs=dofs,
+            skel, [goal.effector], out, reach="arm",
             root_position=np.tile(root[0], (len(out), 1)),
             root_rotation=np.tile(root[1], (len(out), 1)),
         )  # fmt: skip
@@ -458,67 +435,6 @@ def clear_path(
     return poses, fracs
 
 
-def pinned_path(
-    ctx: PassContext,
-    state: PoseState,
-    segs: list[Segment],
-    poses: list[FloatArray],
-    root: tuple[FloatArray, FloatArray],
-    fracs: list[float],
-    pinned: list[Goal],
-) -> tuple[list[FloatArray], list[float]]:
-    """Keyframes whose joint-space path lets each pinned hand's arm stay on its site.
-
-    A torso reach is solved with the held hands at its ends only; between them the trunk's dofs
-    are interpolated one by one (a rotation unwound while the flexion grows), and the fuel
-    filter's bowl, held by a P1 woman's right hand, was out of that arm's reach half-way through
-    the left hand's reach (9 mm at best, 47 mm once the hold pass lost it). Each pose on the
-    path that the arm put back by itself (``repin``) leaves further off than ``PIN_SLACK`` is
-    solved again with the trunk, the reaching hands kept where they are in it and the held ones
-    on their sites, and becomes a keyframe: every such pose, not only the worst, so the
-    correction rises and falls along the path (the pace pass smooths it only as far as the held
-    hands stay in reach: ``pace._keeping_holds``)."""
-    if not pinned or len(poses) < 2:
-        return list(poses), list(fracs)
-    skel = state.skel
-    steps = np.linspace(0.0, 1.0, PIN_SAMPLES)[1:-1]
-    qs = np.array([a + f * (b - a) for a, b in itertools.pairwise(poses) for f in steps])
-    at = np.array(
-        [
-            fracs[i // len(steps)]
-            + steps[i % len(steps)] * (fracs[i // len(steps) + 1] - fracs[i // len(steps)])
-            for i in range(len(qs))
-        ]
-    )
-    put_back = repin(ctx, skel, qs, pinned, root, as_held=True)
-    off = np.array([pins_off(state, pinned, row[None], root) for row in put_back])
-    bad = np.flatnonzero(off > PIN_SLACK)
-    if not bad.size:
-        return list(poses), list(fracs)
-    n = len(bad)
-    goals = [
-        Goal(
-            s.goal.effector,
-            position=np.array([state.site(s.goal.effector, qs[i], root) for i in bad]),
-        )
-        for s in segs
-    ] + [Goal(g.effector, position=np.tile(g.position, (n, 1))) for g in pinned]
-    m = prepare(
-        skel, [g.effector for g in goals], put_back[bad], reach="torso",
-        root_position=np.tile(root[0], (n, 1)), root_rotation=np.tile(root[1], (n, 1)),
-    )  # fmt: skip
-    fixed = solve_ta(skel, goals, put_back[bad], model=m, restarts=0, null_gain=0.0, tol=2e-4).q
-    fixed = repin(ctx, skel, fixed, pinned, root, as_held=True)
-    keys = {
-        float(at[i]): fixed[j]
-        for j, i in enumerate(bad)
-        if pins_off(state, pinned, fixed[j : j + 1], root) <= TOLERANCE
-    }
-    keys.update({float(f): q for f, q in zip(fracs, poses, strict=True)})
-    order = sorted(keys)
-    return [keys[f] for f in order], order
-
-
 def lowest_hand_point(
     state: PoseState, segs: list[Segment], q: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> float:
@@ -646,12 +562,6 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
         assert kf is not None
         fracs = list((kf.time - t0) / max(t1 - t0, 1e-9))
         poses = [_pose_at(skel, state.q_at(t), segs, k) for k, t in enumerate(kf.time)]
-        if segs[0].result.get("reach") == "torso":
-            pinned = pinned_hands(state, segs, q0, root)
-            kept, kept_fracs = pinned_path(ctx, state, segs, poses, root, fracs, pinned)
-            if len(kept) != len(poses):
-                _rekey(skel, segs, kept, kept_fracs)
-                poses, fracs = kept, kept_fracs
         poses, new_fracs = clear_path(state, segs, poses, root, fracs)
         if len(poses) != len(fracs):
             _rekey(skel, segs, poses, new_fracs)

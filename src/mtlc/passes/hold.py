@@ -164,11 +164,6 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
 def holding(ir: MotionIR, t: float, memo: dict[Any, Any] | None = None) -> set[str]:
     """The arm tracks whose hand is on a site at ``t`` (from its contact's start until its
     hold ends): what a reach of the other hand must not pull away."""
-    return set(held_contacts(ir, t, memo))
-
-
-def held_contacts(ir: MotionIR, t: float, memo: dict[Any, Any] | None = None) -> dict[str, Segment]:
-    """Per arm track whose hand is on a site at ``t``, the contact (TO) segment it holds."""
     key = ("hold_spans", len(ir.segments))
     if memo is not None and key in memo:
         spans = memo[key]
@@ -176,7 +171,7 @@ def held_contacts(ir: MotionIR, t: float, memo: dict[Any, Any] | None = None) ->
         spans = hold_spans(ir)
         if memo is not None:
             memo[key] = spans
-    return {seg.track: seg for seg, end in spans if seg.start - EPS <= t < end - EPS}
+    return {seg.track for seg, end in spans if seg.start - EPS <= t < end - EPS}
 
 
 def on_site(ir: MotionIR, time: FloatArray) -> dict[str, np.ndarray]:

@@ -27,7 +27,6 @@ import numpy as np
 
 from mtlc.body import forward, part_site_positions
 from mtlc.body.capsules import limbs_of_sides, self_intersection
-from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
@@ -44,7 +43,6 @@ from mtlc.passes.carry import (
     solve_smoothed,
 )
 from mtlc.passes.context import INTERNAL_FPS, PassContext
-from mtlc.passes.hold import SOLVE_TOL, Hold, hold_windows
 from mtlc.passes.hold import _arm_dofs as arm_dofs
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
@@ -83,10 +81,6 @@ END_BLEND = 0.25
 CLEAN_SIGMA = 4.0  # points of ``PATH_POINTS``: the carried path's last low-pass (``_cleaned``)
 CLEAN_SPARE = 5e-4  # m: how much further from the part's length the low-passed path may go
 REACH_TOL = 2e-3
-# narrower smoothings, down to none, tried when a smoothed path takes a hand held during it
-# (the other hand's) out of its arm's reach by more than HELD_SLACK
-HELD_SIGMAS = (0.05, 0.02, 0.0)
-HELD_SLACK = 5e-4  # m
 NEED_SAMPLES = 512  # the minimum-jerk clock sampled this densely to find the fastest joint
 
 
@@ -427,11 +421,7 @@ def _record_shortfall(ir: MotionIR, m: Movement, path: Frames) -> None:
 
 
 def reach_path(
-    ir: MotionIR,
-    m: Movement,
-    frames: Frames,
-    rigid: Sequence[Carry] = (),
-    holds: Sequence[Hold] = (),
+    ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
 ) -> ReachPath | None:
     """The movement's path as interpolation makes it, resampled at even progress and smoothed
     (None when nothing moves): by the widest of ``SMOOTH_SIGMAS`` that takes nothing deeper
@@ -441,8 +431,7 @@ def reach_path(
     arms' keys are interpolated each on its own and squeezed the avionics unit by 16 cm
     between them, and the carry pass's correction, made after the timing, turned an elbow
     18 deg in one output frame; made here on the path, it is timed with the rest (and counts
-    in ``needed_time``). A hand held during the movement (``holds``) is kept in its arm's
-    reach (``_keeping_holds``)."""
+    in ``needed_time``)."""
     idx = [ir.skeleton.dof_index(n) for n in m.dofs]
     u, total = progress(ir, m, frames)
     if total <= 1e-6:
@@ -464,8 +453,6 @@ def reach_path(
         if approach_depth(ir, m, wider) <= allowed:
             chosen = wider
             break
-    if holds:
-        chosen = _keeping_holds(ir, m, body, idx, held, chosen, holds)
     u2, _ = progress(ir, m, chosen)
     return ReachPath(u2, chosen.q[:, idx])
 
@@ -490,54 +477,6 @@ def _from_carried_end(
         delta = value - float(values[0, k])
         if between.size == 0 and abs(delta) > EPS:
             values[:, k] += fade * delta
-
-
-def held_off(ir: MotionIR, m: Movement, path: Frames, holds: Sequence[Hold]) -> float:
-    """How far (m), at worst on the path, a hand held during the movement (not one of its
-    effectors) stays from its held point once its arm is put back as the hold pass does (the
-    arm without the forearm's twist, from the path's pose)."""
-    skel = ir.skeleton
-    worst = 0.0
-    for hold in holds:
-        if hold.point is None or hold.effector[0] in {e[0] for e in m.effectors}:
-            continue  # (a tool's tip is its hand's: the same side)
-        rows = np.flatnonzero((path.time >= hold.start - EPS) & (path.time < hold.end - EPS))
-        if not rows.size:
-            continue
-        n = len(rows)
-        model = prepare(
-            skel, [hold.effector], path.q[rows], dofs=arm_dofs(skel, hold.effector),
-            root_position=path.root_position[rows], root_rotation=path.root_rotation[rows],
-        )  # fmt: skip
-        goal = Goal(hold.effector, position=np.tile(hold.point, (n, 1)))
-        res = solve_ta(
-            skel, [goal], path.q[rows], model=model, restarts=0, null_gain=0.0, tol=SOLVE_TOL
-        )
-        worst = max(worst, float(res.position_error.max()))
-    return worst
-
-
-def _keeping_holds(
-    ir: MotionIR,
-    m: Movement,
-    body: Frames,
-    idx: list[int],
-    held: Sequence[Carry],
-    chosen: Frames,
-    holds: Sequence[Hold],
-) -> Frames:
-    """``chosen``, or a narrower smoothing of ``body`` (``HELD_SIGMAS``, the last none) when
-    ``chosen`` takes a held hand out of its arm's reach: a torso reach keyed so that the other
-    hand's arm can stay on what it holds (``approach.pinned_path``) had that correction
-    smoothed away, and the hold pass lost the fuel filter's bowl (female P5) mid-reach."""
-    mine = [h for h in holds if h.start < m.end - EPS and h.end > m.start + EPS]
-    if not mine or held_off(ir, m, chosen, mine) <= HELD_SLACK:
-        return chosen
-    for sigma in HELD_SIGMAS:
-        narrower = _smoothed(ir, m, body, idx, held, sigma) if sigma > 0.0 else body
-        if held_off(ir, m, narrower, mine) <= HELD_SLACK:
-            return narrower
-    return chosen
 
 
 def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
@@ -609,14 +548,13 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     _, frames_all = _body(ir, np.concatenate(grids))
     paths: list[ReachPath | None] = []
     rigid = carries(ir)
-    holds = hold_windows(ir)
     a = 0
     for m, grid in zip(moves, grids, strict=True):
         b = a + len(grid)
         part = Frames(0.0, grid, frames_all.root_position[a:b], frames_all.root_rotation[a:b],
                       frames_all.q[a:b])  # fmt: skip
         a = b
-        paths.append(reach_path(ir, m, part, rigid, holds))
+        paths.append(reach_path(ir, m, part, rigid))
     # movements too short for their joints last longer, and everything after them waits
     fps = ctx.options.fps
     stretches = [

@@ -388,530 +388,524 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (40.438, 15.048, 13.277), 'spine_thoracic': (-8.109, 9.053, 20.818),
-        'neck': (35.0, 27.063, -18.302), 'right_shoulder': (33.629, 17.124, 6.293),
-        'right_elbow': (27.515, 80.0), 'right_wrist': (-1.48, -2.045), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.595, 5.73, 11.459), 'left_elbow': (34.378, 17.189),
+        'spine_lumbar': (40.438, 15.048, 13.278), 'spine_thoracic': (-8.109, 9.053, 20.818),
+        'neck': (35.0, 27.063, -18.314), 'right_shoulder': (33.629, 17.124, 6.292),
+        'right_elbow': (27.516, 80.0), 'right_wrist': (-1.48, -2.045),
+        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.853, 14.888, 13.008), 'spine_thoracic': (-8.256, 9.005, 20.584),
-        'neck': (35.0, 28.584, -16.56), 'right_clavicle': (-9.859, 13.067),
-        'right_shoulder': (33.715, 16.614, 6.537), 'right_elbow': (27.89, 80.0),
-        'right_wrist': (-1.563, -1.987), 'left_clavicle': (-0.213, 0.249),
-        'left_shoulder': (9.134, 5.761, 11.391), 'left_elbow': (34.436, 17.188),
-        'left_wrist': (-0.025, 0.005),
+        'spine_lumbar': (40.903, 14.8, 13.049), 'spine_thoracic': (-8.273, 8.983, 20.657),
+        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.072),
+        'right_shoulder': (33.474, 16.721, 6.4), 'right_elbow': (28.338, 80.0),
+        'right_wrist': (-1.696, -1.978), 'left_clavicle': (-0.233, 0.357),
+        'left_shoulder': (9.112, 5.658, 11.425), 'left_elbow': (34.358, 17.188),
+        'left_wrist': (-0.007, -0.017),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (42.676, 14.184, 11.823), 'spine_thoracic': (-8.899, 8.792, 19.558),
-        'neck': (35.0, 33.142, -12.688), 'right_clavicle': (-9.761, 13.251),
-        'right_shoulder': (34.072, 14.377, 7.607), 'right_elbow': (29.489, 79.998),
-        'right_wrist': (-1.917, -1.73), 'left_clavicle': (-1.146, 1.341),
-        'left_shoulder': (11.502, 5.898, 11.091), 'left_elbow': (34.694, 17.183),
+        'spine_lumbar': (42.944, 13.709, 12.047), 'spine_thoracic': (-8.992, 8.672, 19.952),
+        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.871, 13.278),
+        'right_shoulder': (32.745, 14.967, 6.877), 'right_elbow': (31.994, 80.0),
+        'right_wrist': (-2.662, -1.661), 'left_clavicle': (-1.256, 1.922),
+        'left_shoulder': (11.395, 5.343, 11.275),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (46.002, 12.896, 9.655), 'spine_thoracic': (-10.076, 8.403, 17.681),
-        'neck': (35.0, 33.75, -8.347), 'right_shoulder': (34.627, 10.298, 9.562),
-        'right_elbow': (32.253, 79.996), 'left_clavicle': (-2.857, 3.339),
-        'left_shoulder': (15.885, 6.154, 10.536), 'left_elbow': (35.198, 17.175),
-        'left_wrist': (-0.337, 0.074),
+        'spine_lumbar': (46.663, 11.722, 10.22), 'spine_thoracic': (-10.302, 8.106, 18.666),
+        'neck': (35.0, 33.59, -10.033), 'right_shoulder': (31.69, 11.772, 7.764),
+        'right_elbow': (38.092, 80.0), 'right_wrist': (-4.286, -1.021),
+        'left_clavicle': (-3.12, 4.774), 'left_shoulder': (15.729, 4.777, 10.978),
+        'left_elbow': (34.219, 17.181), 'left_wrist': (-0.115, -0.199),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (50.086, 11.3, 6.931), 'spine_thoracic': (-11.554, 7.924, 15.326),
-        'neck': (35.0, 33.75, -2.919), 'head': (15.0, -11.25), 'right_clavicle': (-9.354, 14.021),
-        'right_shoulder': (35.152, 5.249, 11.995), 'right_elbow': (35.37, 79.989),
-        'right_wrist': (-3.198, -0.722), 'left_clavicle': (-5.025, 5.849),
-        'left_shoulder': (21.598, 6.466, 9.823), 'left_elbow': (35.985, 17.164),
+        'spine_lumbar': (51.271, 9.26, 7.956), 'neck': (35.0, 33.675, -6.28),
+        'right_clavicle': (-9.837, 14.119), 'right_shoulder': (30.694, 7.821, 8.905),
+        'right_elbow': (44.906, 80.0), 'right_wrist': (-6.095, -0.151),
+        'left_clavicle': (-5.428, 8.307), 'left_shoulder': (21.653, 4.146, 10.513),
+        'left_elbow': (34.787, 17.179), 'left_wrist': (-0.304, -0.183),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (53.462, 9.908, 4.339), 'spine_thoracic': (-12.923, 7.497, 13.093),
-        'neck': (35.0, 30.182, 1.528), 'head': (15.0, -10.061),
-        'right_shoulder': (35.729, 0.626, 14.232), 'right_elbow': (37.071, 79.97),
-        'right_wrist': (-3.516, -0.299), 'left_clavicle': (-7.193, 8.231),
-        'left_shoulder': (27.476, 6.547, 9.176), 'left_elbow': (37.176, 17.156),
-        'left_wrist': (-0.907, 0.329),
+        'spine_lumbar': (55.63, 6.93, 5.815), 'spine_thoracic': (-13.461, 6.741, 15.568),
+        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.82, 14.559),
+        'right_shoulder': (29.812, 4.148, 10.025), 'right_elbow': (51.053, 80.0),
+        'right_wrist': (-7.721, 0.747), 'left_clavicle': (-7.613, 11.649),
+        'left_shoulder': (27.369, 3.891, 9.861), 'left_elbow': (38.481, 17.191),
+        'left_wrist': (-0.847, 0.595),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (53.822, 9.509, 2.758), 'spine_thoracic': (-13.576, 7.282, 11.756),
-        'neck': (35.0, 7.403, 5.575), 'head': (15.0, -2.468), 'right_clavicle': (-8.935, 14.811),
-        'right_shoulder': (37.363, -1.98, 15.407), 'right_elbow': (33.569, 79.921),
-        'right_wrist': (-2.51, -0.351), 'left_clavicle': (-8.872, 9.644),
-        'left_shoulder': (31.586, 5.647, 9.052), 'left_elbow': (38.87, 17.155),
-        'left_wrist': (-1.079, 0.662),
+        'spine_lumbar': (58.673, 5.304, 4.32), 'spine_thoracic': (-14.533, 6.277, 14.516),
+        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.808, 14.866),
+        'right_shoulder': (29.212, 1.668, 10.885), 'right_elbow': (55.215, 80.0),
+        'right_wrist': (-8.887, 1.442), 'left_clavicle': (-9.137, 13.983),
+        'left_shoulder': (28.438, 4.737, 9.082), 'left_elbow': (50.378, 17.242),
+        'left_wrist': (-2.185, 3.422),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (52.15, 9.894, 2.409), 'spine_thoracic': (-13.511, 7.263, 11.483),
-        'neck': (35.0, -20.289, 8.762), 'head': (15.0, 6.763), 'right_clavicle': (-8.85, 14.973),
-        'right_shoulder': (39.782, -2.597, 15.491), 'right_elbow': (26.99, 79.874),
-        'right_wrist': (-0.746, -0.713), 'left_clavicle': (-9.612, 9.908),
-        'left_shoulder': (32.791, 4.406, 9.347), 'left_elbow': (40.12, 17.159),
-        'left_wrist': (-1.084, 0.955),
+        'spine_lumbar': (59.821, 4.691, 3.756), 'spine_thoracic': (-14.937, 6.102, 14.119),
+        'neck': (35.0, 32.785, -0.758), 'right_shoulder': (28.994, 0.774, 11.256),
+        'right_elbow': (56.752, 80.0), 'right_wrist': (-9.374, 1.73),
+        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.794, 5.863, 8.602),
+        'left_elbow': (62.139, 17.294), 'left_wrist': (-3.414, 6.284),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'spine_lumbar': (51.764, 9.992, 2.371), 'neck': (35.0, -33.75, 10.053),
-        'head': (15.0, 11.25), 'right_shoulder': (40.328, -2.684, 15.481),
-        'right_elbow': (25.516, 79.864), 'right_wrist': (-0.357, -0.794),
-        'left_clavicle': (-9.737, 9.931), 'left_shoulder': (32.854, 4.157, 9.42),
-        'left_elbow': (40.521, 17.159), 'left_wrist': (-1.093, 1.051),
+        'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, 32.785, -0.758),
+        'head': (15.0, -11.25), 'right_clavicle': (-9.802, 15.0),
+        'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
+        'right_wrist': (-9.449, 1.776), 'left_clavicle': (-9.802, 15.0),
+        'left_shoulder': (25.156, 6.092, 8.516), 'left_elbow': (64.45, 17.304),
+        'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, -32.906, 9.355), 'head': (14.907, 10.914),
-        'right_shoulder': (40.321, -2.653, 15.447), 'right_elbow': (25.519, 79.833),
-        'right_wrist': (-0.425, -0.774),
+        'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
+        'right_shoulder': (30.252, 0.886, 11.121), 'right_elbow': (54.286, 79.958),
+        'right_wrist': (-8.801, 1.617),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, -19.417, -1.807), 'head': (13.423, 5.547),
-        'right_shoulder': (39.786, -0.423, 12.991), 'right_elbow': (25.694, 77.606),
-        'right_wrist': (-5.244, 0.665),
+        'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
+        'right_shoulder': (32.349, 3.754, 8.711), 'right_elbow': (47.033, 76.984),
+        'right_wrist': (-11.211, 2.124),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (51.798, 10.01, 2.371), 'spine_thoracic': (-13.462, 7.271, 11.452),
-        'neck': (35.0, 1.567, -19.17), 'head': (11.115, -2.802),
-        'right_shoulder': (38.08, 6.521, 5.346), 'right_elbow': (26.23, 70.684),
-        'right_wrist': (-20.183, 5.123),
+        'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (35.0, 25.451, -24.003),
+        'head': (10.824, -10.971), 'right_shoulder': (29.538, 10.952, 2.523),
+        'right_elbow': (44.184, 67.974), 'right_wrist': (-23.534, 4.862),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (52.081, 10.166, 2.404), 'spine_thoracic': (-13.37, 7.322, 11.461),
-        'neck': (35.0, 18.367, -33.072), 'head': (9.268, -9.487),
-        'right_clavicle': (-8.801, 14.944), 'right_shoulder': (35.426, 16.313, -5.372),
-        'right_elbow': (26.883, 61.062), 'right_wrist': (-40.642, 11.219),
-        'left_elbow': (40.357, 17.159),
+        'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
+        'right_shoulder': (22.964, 20.52, -5.758), 'right_elbow': (46.936, 55.679),
+        'right_wrist': (-42.522, 8.912),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (53.819, 11.203, 2.831), 'spine_thoracic': (-13.056, 7.624, 11.784),
-        'neck': (35.0, 21.595, -35.743), 'head': (8.912, -10.771),
-        'right_clavicle': (-8.384, 14.846), 'right_shoulder': (32.74, 26.198, -15.493),
-        'right_elbow': (26.976, 52.205), 'right_wrist': (-58.316, 16.437),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
+        'right_shoulder': (21.357, 30.49, -13.792), 'right_elbow': (40.813, 44.146),
+        'right_wrist': (-56.169, 11.685),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (58.003, 13.873, 4.255), 'spine_thoracic': (-12.739, 8.336, 13.031),
-        'neck': (35.0, 21.595, -35.743), 'head': (8.912, -10.771),
-        'right_clavicle': (-6.994, 14.919), 'right_shoulder': (32.156, 33.661, -21.278),
-        'right_elbow': (25.95, 47.439), 'right_wrist': (-65.737, 18.542),
+        'right_shoulder': (26.361, 37.405, -17.776), 'right_elbow': (25.627, 37.021),
+        'right_wrist': (-56.401, 11.665), 'left_elbow': (64.34, 17.304),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'spine_lumbar': (59.96, 15.15, 4.982), 'spine_thoracic': (-12.654, 8.667, 13.684),
-        'neck': (32.999, 19.298, -36.513), 'head': (6.828, -10.003),
-        'right_clavicle': (-6.283, 14.998), 'right_shoulder': (32.364, 36.15, -22.793),
-        'right_elbow': (25.393, 46.257), 'right_wrist': (-67.004, 18.873),
-        'left_shoulder': (32.954, 4.147, 9.418),
+        'right_shoulder': (29.408, 39.667, -18.61), 'right_elbow': (18.392, 34.83),
+        'right_wrist': (-52.331, 11.19),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'neck': (32.898, 18.717, -37.979), 'head': (5.988, -9.808),
-        'right_shoulder': (32.452, 36.221, -22.808), 'right_elbow': (25.272, 46.235),
-        'right_wrist': (-66.911, 18.86),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
+        'right_shoulder': (29.481, 39.714, -18.624), 'right_elbow': (18.233, 34.786),
+        'right_wrist': (-52.264, 11.178),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
-    human.KeyJoints(8.9, {'neck': (33.157, 18.523, -39.79), 'head': (7.275, -10.014)})
-    human.KeyJoints(9.0, {'neck': (33.772, 18.063, -44.088)})
+    human.KeyJoints(8.9, {
+        'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
+        'right_wrist': (-55.044, 11.187),
+    })
+    human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.1, {
-        'spine_lumbar': (60.0, 15.179, 4.984), 'spine_thoracic': (-12.65, 8.663, 13.67),
-        'neck': (34.404, 17.59, -48.502), 'head': (13.467, -11.005),
-        'left_clavicle': (-9.737, 9.935), 'left_shoulder': (32.957, 4.149, 9.426),
-        'left_elbow': (40.351, 17.182), 'left_wrist': (-1.118, 1.025),
+        'spine_lumbar': (60.0, 4.605, 3.656), 'spine_thoracic': (-14.996, 6.068, 14.029),
+        'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
+        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
+        'left_elbow': (64.319, 17.328), 'left_wrist': (-3.679, 6.829),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (60.0, 15.346, 4.29), 'spine_thoracic': (-12.521, 8.108, 12.153),
-        'neck': (34.712, 17.359, -50.654), 'head': (14.996, -11.249),
-        'left_clavicle': (-9.713, 10.11), 'left_shoulder': (33.116, 4.243, 9.895),
-        'left_elbow': (40.008, 18.416), 'left_wrist': (-3.178, 1.683),
+        'spine_lumbar': (60.0, 5.155, 2.991), 'spine_thoracic': (-14.782, 5.645, 12.458),
+        'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
+        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.777, 15.0),
+        'left_shoulder': (25.706, 6.129, 9.02), 'left_elbow': (63.166, 18.604),
+        'left_wrist': (-5.718, 7.298),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
-        'spine_lumbar': (60.0, 15.907, 1.965), 'spine_thoracic': (-12.08, 6.246, 7.071),
-        'neck': (33.868, 19.767, -42.17), 'right_elbow': (25.382, 46.235),
-        'right_wrist': (-67.027, 18.879), 'left_clavicle': (-9.632, 10.699),
-        'left_shoulder': (33.649, 4.567, 11.466), 'left_elbow': (38.841, 22.551),
-        'left_wrist': (-10.082, 3.889),
+        'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
+        'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
+        'left_shoulder': (27.297, 6.302, 10.676), 'left_elbow': (59.267, 22.894),
+        'left_wrist': (-12.571, 8.874),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (60.0, 16.831, -1.86), 'spine_thoracic': (-11.253, 3.175, -1.291),
-        'neck': (32.437, 25.225, -24.137), 'left_clavicle': (-9.477, 11.665),
-        'left_shoulder': (34.579, 5.213, 14.039), 'left_elbow': (36.75, 29.35),
-        'left_wrist': (-21.391, 7.5),
+        'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
+        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
+        'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
+        'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (60.0, 17.931, -6.402), 'spine_thoracic': (-9.74, -0.557, -11.236),
-        'neck': (34.525, 30.743, -9.549), 'right_shoulder': (32.368, 36.199, -22.823),
-        'left_clavicle': (-9.254, 12.802), 'left_shoulder': (36.133, 6.434, 17.019),
-        'left_elbow': (33.42, 37.398), 'left_wrist': (-34.402, 11.638),
+        'spine_lumbar': (60.0, 13.671, -7.308), 'spine_thoracic': (-10.514, -1.074, -11.877),
+        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893),
+        'left_clavicle': (-9.292, 14.975), 'left_shoulder': (33.625, 7.497, 16.542),
+        'left_elbow': (43.611, 38.329), 'left_wrist': (-36.733, 14.357),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 18.972, -10.696), 'spine_thoracic': (-6.41, -4.483, -20.647),
-        'neck': (35.0, 33.713, -1.394), 'head': (15.0, -11.25), 'left_clavicle': (-9.167, 13.87),
-        'left_shoulder': (39.854, 8.64, 19.501), 'left_elbow': (27.48, 44.814),
-        'left_wrist': (-44.494, 14.796),
+        'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
+        'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
+        'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
+        'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.697, -13.716), 'spine_thoracic': (-0.455, -8.096, -27.229),
-        'neck': (34.83, 15.527, 5.969), 'head': (14.863, -0.546), 'left_clavicle': (-9.587, 14.65),
-        'left_shoulder': (47.427, 11.531, 20.57), 'left_elbow': (18.233, 49.558),
-        'left_wrist': (-46.627, 15.364),
+        'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
+        'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
+        'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
+        'left_wrist': (-47.473, 15.797),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.979, -14.913), 'spine_thoracic': (3.3, -9.867, -29.812),
-        'neck': (34.319, -4.252, 10.169), 'head': (14.464, 11.142),
-        'left_clavicle': (-9.97, 14.976), 'left_shoulder': (52.432, 13.1, 20.73),
-        'left_elbow': (12.644, 51.241), 'left_wrist': (-45.45, 14.921),
+        'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
+        'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
+        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.912, 12.957, 20.101),
+        'left_elbow': (12.614, 51.643), 'left_wrist': (-45.957, 15.003),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
     human.KeyJoints(9.9, {
-        'spine_thoracic': (3.589, -10.0, -30.0), 'neck': (32.174, -3.731, 10.129),
-        'head': (12.892, 10.943), 'left_shoulder': (52.943, 13.176, 20.742),
-        'left_elbow': (12.011, 51.361), 'left_wrist': (-45.103, 14.812),
+        'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
+        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
-    human.KeyJoints(10.0, {'spine_lumbar': (60.0, 20.0, -15.0)})
     human.KeyJoints(10.1, {
-        'neck': (32.174, -3.731, 10.129), 'head': (12.892, 10.943),
-        'left_shoulder': (52.943, 13.176, 20.742), 'left_elbow': (12.011, 51.361),
-        'left_wrist': (-45.103, 14.812),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
+        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
-        'neck': (32.399, -4.195, 14.95), 'head': (13.063, 10.969),
-        'left_shoulder': (51.853, 13.49, 19.875), 'left_elbow': (14.11, 51.187),
-        'left_wrist': (-45.543, 14.874),
+        'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
+        'left_shoulder': (52.255, 13.363, 19.269), 'left_elbow': (14.124, 51.573),
+        'left_wrist': (-46.194, 14.983),
     })
     human.KeyJoints(10.3, {
-        'neck': (33.159, -5.762, 31.247), 'head': (13.641, 11.058),
-        'left_shoulder': (44.387, 15.627, 13.766), 'left_elbow': (28.436, 49.953),
-        'left_wrist': (-48.214, 15.185),
+        'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
+        'left_shoulder': (44.901, 15.561, 13.318), 'left_elbow': (28.254, 50.351),
+        'left_wrist': (-48.75, 15.28),
     })
     human.KeyJoints(10.4, {
-        'neck': (34.066, -7.631, 50.687), 'head': (14.33, 11.164),
-        'left_shoulder': (32.087, 19.072, 3.671), 'left_elbow': (50.588, 47.872),
-        'left_wrist': (-52.306, 15.621),
+        'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
+        'left_shoulder': (32.623, 19.142, 3.357), 'left_elbow': (50.374, 48.262),
+        'left_wrist': (-52.717, 15.702),
     })
     human.KeyJoints(10.5, {
-        'neck': (34.706, -8.949, 64.395), 'head': (14.816, 11.239),
-        'left_shoulder': (15.873, 23.239, -9.601), 'left_elbow': (73.2, 44.908),
-        'left_wrist': (-56.569, 15.853),
+        'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
+        'left_shoulder': (16.23, 23.477, -9.859), 'left_elbow': (73.078, 45.265),
+        'left_wrist': (-56.891, 15.917),
     })
     human.KeyJoints(10.6, {
-        'neck': (34.796, -9.136, 66.333), 'left_shoulder': (-5.315, 27.585, -26.589),
-        'left_elbow': (86.383, 40.372), 'left_wrist': (-59.595, 14.807),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-5.395, 27.919, -26.805),
+        'left_elbow': (86.066, 40.686), 'left_wrist': (-59.878, 14.848),
     })
     human.KeyJoints(10.7, {
-        'left_shoulder': (-25.786, 31.471, -43.956), 'left_elbow': (86.469, 35.218),
-        'left_wrist': (-60.869, 11.786),
+        'head': (14.88, 11.25), 'left_shoulder': (-26.1, 31.869, -44.096),
+        'left_elbow': (85.741, 35.592), 'left_wrist': (-61.195, 11.873),
     })
     human.KeyJoints(10.8, {
-        'head': (14.885, 11.25), 'left_shoulder': (-38.225, 35.844, -60.507),
-        'left_elbow': (87.529, 31.848), 'left_wrist': (-63.048, 9.243),
+        'left_shoulder': (-38.072, 36.412, -60.79), 'left_elbow': (87.06, 32.389),
+        'left_wrist': (-63.588, 9.483),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-41.455, 37.992, -71.174), 'left_elbow': (92.835, 31.024),
-        'left_wrist': (-65.954, 8.735),
+        'left_shoulder': (-40.838, 38.55, -71.465), 'left_elbow': (92.599, 31.625),
+        'left_wrist': (-66.604, 9.03),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-42.161, 38.59, -75.17), 'left_elbow': (95.426, 30.867),
-        'left_wrist': (-67.249, 8.69),
+        'left_shoulder': (-41.41, 39.09, -75.502), 'left_elbow': (95.26, 31.469),
+        'left_wrist': (-67.945, 8.986),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'left_shoulder': (-42.214, 38.635, -75.484), 'left_elbow': (95.633, 30.855),
-        'left_wrist': (-67.351, 8.687),
+        'left_shoulder': (-41.453, 39.119, -75.823), 'left_elbow': (95.476, 31.457),
+        'left_wrist': (-68.055, 8.983),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.587656)
-    human.KeyJoints(11.2, {'neck': (34.803, -9.137, 66.35)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
+    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.4, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (3.589, -10.0, -30.0),
-        'right_clavicle': (-6.269, 15.0), 'right_shoulder': (32.368, 36.199, -22.823),
-        'right_elbow': (25.382, 46.235), 'right_wrist': (-67.027, 18.879),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),
+        'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (60.0, 18.934, -14.461), 'spine_thoracic': (3.127, -9.467, -29.484),
-        'right_clavicle': (-6.368, 15.0), 'right_shoulder': (32.638, 34.886, -22.394),
-        'right_elbow': (25.398, 46.387), 'right_wrist': (-66.669, 18.802),
+        'spine_lumbar': (60.0, 18.983, -14.454), 'spine_thoracic': (3.731, -9.488, -29.467),
+        'right_shoulder': (29.66, 38.407, -18.234), 'right_elbow': (18.704, 34.954),
+        'right_wrist': (-52.361, 11.239),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (59.997, 13.615, -11.768), 'spine_thoracic': (0.818, -6.807, -26.906),
-        'right_clavicle': (-6.864, 15.0), 'right_shoulder': (33.986, 28.32, -20.252),
-        'right_elbow': (25.48, 47.147), 'right_wrist': (-64.88, 18.418),
+        'spine_lumbar': (59.997, 13.83, -11.689), 'spine_thoracic': (1.88, -6.911, -26.763),
+        'right_clavicle': (-9.832, 15.0), 'right_shoulder': (31.1, 31.83, -16.148),
+        'right_elbow': (20.594, 35.807), 'right_wrist': (-52.114, 11.425),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (59.954, 4.524, -7.165), 'spine_thoracic': (-3.159, -2.259, -22.49),
-        'neck': (34.999, -9.204, 66.869), 'right_shoulder': (36.343, 16.966, -16.543),
-        'right_elbow': (25.644, 48.466), 'right_wrist': (-61.826, 17.764),
+        'spine_lumbar': (59.957, 4.801, -6.843), 'spine_thoracic': (-1.463, -2.395, -22.016),
+        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.672, 20.18, -12.438),
+        'right_elbow': (23.982, 37.322), 'right_wrist': (-51.688, 11.772),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.724509, duration=0.394432)
+    human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
     human.KeyJoints(11.8, {
-        'spine_lumbar': (59.492, -5.574, -2.038), 'spine_thoracic': (-7.671, 2.823, -17.546),
-        'neck': (34.489, -10.751, 60.925), 'right_clavicle': (-8.581, 14.941),
-        'right_shoulder': (39.049, 3.653, -12.178), 'right_elbow': (25.933, 50.024),
-        'right_wrist': (-58.481, 17.074),
+        'spine_lumbar': (59.493, -5.403, -1.349), 'spine_thoracic': (-5.618, 2.74, -16.608),
+        'neck': (34.474, -10.956, 59.829), 'right_clavicle': (-9.854, 14.931),
+        'right_shoulder': (36.642, 6.302, -7.959), 'right_elbow': (28.171, 39.139),
+        'right_wrist': (-51.275, 12.281),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (57.569, -13.612, 2.091), 'spine_thoracic': (-11.347, 6.978, -13.526),
-        'neck': (32.855, -15.906, 41.433), 'right_clavicle': (-9.048, 14.713),
-        'right_shoulder': (40.991, -8.804, -8.09), 'right_elbow': (26.395, 51.489),
-        'right_wrist': (-55.997, 16.658),
+        'spine_lumbar': (57.59, -13.557, 3.099), 'spine_thoracic': (-9.555, 6.955, -12.196),
+        'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
+        'right_shoulder': (38.72, -6.64, -3.669), 'right_elbow': (32.291, 40.84),
+        'right_wrist': (-51.199, 12.982),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
-        'spine_lumbar': (55.236, -17.913, 4.341), 'spine_thoracic': (-13.327, 9.292, -11.317),
-        'neck': (31.232, -21.806, 20.69), 'right_clavicle': (-9.103, 14.435),
-        'right_shoulder': (41.738, -16.865, -5.452), 'right_elbow': (26.801, 52.437),
-        'right_wrist': (-54.817, 16.546),
+        'spine_lumbar': (55.373, -17.948, 5.539), 'spine_thoracic': (-12.008, 9.312, -9.764),
+        'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
+        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.504, -14.908, -0.872),
+        'right_elbow': (35.008, 41.925), 'right_wrist': (-51.359, 13.562),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (54.542, -18.988, 4.907), 'spine_thoracic': (-13.822, 9.879, -10.76),
-        'neck': (31.082, -24.808, 12.493), 'right_shoulder': (41.897, -18.995, -4.756),
-        'right_elbow': (26.916, 52.688), 'right_wrist': (-54.535, 16.528),
+        'spine_lumbar': (54.72, -19.053, 6.157), 'spine_thoracic': (-12.648, 9.911, -9.147),
+        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.603, -17.106, -0.128),
+        'right_elbow': (35.83, 42.211), 'right_wrist': (-51.485, 13.749),
+        'left_shoulder': (-41.45, 39.188, -75.798),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'neck': (31.184, -24.738, 12.772), 'right_clavicle': (-9.1, 14.352),
-        'right_shoulder': (41.854, -19.0, -4.757), 'right_elbow': (26.982, 52.731),
-        'right_wrist': (-54.588, 16.541),
+        'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
+        'right_clavicle': (-9.216, 14.273), 'right_shoulder': (39.601, -17.113, -0.126),
+        'right_elbow': (35.832, 42.271), 'right_wrist': (-51.485, 13.749),
     })
     human.KeyJoints(12.3, {
-        'right_shoulder': (41.733, -18.51, -4.935), 'right_elbow': (26.857, 57.738),
+        'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),
     })
-    human.KeyJoints(12.4, {'head': (15.0, 11.211), 'right_elbow': (26.723, 67.43)})
+    human.KeyJoints(12.4, {'right_elbow': (34.977, 62.608), 'right_wrist': (-51.115, 13.353)})
     human.KeyJoints(12.5, {
-        'right_shoulder': (41.476, -16.577, -5.631), 'right_elbow': (26.781, 76.57),
-        'right_wrist': (-54.475, 16.16),
+        'right_shoulder': (39.201, -14.009, -1.513), 'right_elbow': (34.902, 75.254),
+        'right_wrist': (-51.041, 13.177),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.6, {
-        'right_shoulder': (41.458, -16.245, -5.748), 'right_elbow': (26.841, 79.758),
-        'right_wrist': (-54.495, 16.118),
+        'right_shoulder': (39.193, -13.562, -1.709), 'right_elbow': (34.962, 79.758),
+        'right_wrist': (-51.045, 13.124),
     })
     human.KeyJoints(12.7, {
-        'right_shoulder': (41.624, -18.029, -5.11), 'right_elbow': (26.803, 62.557),
-        'right_wrist': (-54.52, 16.376),
+        'right_shoulder': (39.285, -15.256, -0.955), 'right_elbow': (34.978, 62.557),
+        'right_wrist': (-51.115, 13.354),
     })
     human.KeyJoints(12.8, {
-        'right_shoulder': (42.551, -20.974, -4.064), 'right_elbow': (28.199, 30.427),
-        'right_wrist': (-55.142, 17.053),
+        'right_shoulder': (39.846, -18.058, 0.276), 'right_elbow': (36.775, 30.427),
+        'right_wrist': (-51.876, 14.076),
     })
     human.KeyJoints(12.9, {
-        'right_shoulder': (43.815, -22.756, -3.523), 'right_elbow': (31.19, 0.621),
-        'right_wrist': (-56.816, 18.149),
+        'right_shoulder': (40.685, -19.749, 0.914), 'right_elbow': (40.194, 0.621),
+        'right_wrist': (-53.313, 15.241),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.0, {
-        'right_shoulder': (44.342, -23.06, -3.449), 'right_elbow': (32.402, -9.627),
-        'right_wrist': (-57.672, 18.644),
+        'right_shoulder': (40.975, -20.05, 0.995), 'right_elbow': (41.703, -9.627),
+        'right_wrist': (-54.025, 15.778),
     })
     human.KeyJoints(13.1, {
-        'right_shoulder': (43.468, -22.414, -3.614), 'right_elbow': (30.297, 8.259),
-        'right_wrist': (-56.257, 17.809),
+        'right_shoulder': (40.466, -19.425, 0.807), 'right_elbow': (39.165, 8.259),
+        'right_wrist': (-52.857, 14.884),
     })
     human.KeyJoints(13.2, {
-        'right_shoulder': (42.173, -20.132, -4.356), 'right_elbow': (27.573, 40.567),
-        'right_wrist': (-54.868, 16.809),
+        'right_shoulder': (39.637, -17.256, -0.064), 'right_elbow': (35.944, 40.567),
+        'right_wrist': (-51.53, 13.79),
     })
     human.KeyJoints(13.3, {
-        'right_shoulder': (41.536, -17.255, -5.389), 'right_elbow': (26.722, 70.044),
-        'right_wrist': (-54.461, 16.251),
+        'right_shoulder': (39.224, -14.524, -1.283), 'right_elbow': (34.89, 70.044),
+        'right_wrist': (-51.056, 13.244),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.4, {
-        'right_shoulder': (41.459, -16.276, -5.737), 'right_elbow': (26.834, 79.469),
-        'right_wrist': (-54.493, 16.122),
+        'right_shoulder': (39.193, -13.591, -1.697), 'right_elbow': (34.957, 79.469),
+        'right_wrist': (-51.045, 13.128),
     })
     human.KeyJoints(13.5, {
-        'right_shoulder': (41.66, -18.194, -5.05), 'right_elbow': (26.814, 60.912),
-        'right_wrist': (-54.522, 16.401),
+        'right_shoulder': (39.303, -15.414, -0.883), 'right_elbow': (35.014, 60.912),
+        'right_wrist': (-51.134, 13.38),
     })
     human.KeyJoints(13.6, {
-        'right_shoulder': (42.626, -21.127, -4.013), 'right_elbow': (28.353, 28.441),
-        'right_wrist': (-55.216, 17.109),
+        'right_shoulder': (39.885, -18.204, 0.335), 'right_elbow': (36.972, 28.441),
+        'right_wrist': (-51.959, 14.141),
     })
     human.KeyJoints(13.7, {
-        'right_shoulder': (43.875, -22.806, -3.51), 'right_elbow': (31.35, -0.691),
-        'right_wrist': (-56.923, 18.212),
+        'right_shoulder': (40.722, -19.796, 0.928), 'right_elbow': (40.379, -0.691),
+        'right_wrist': (-53.398, 15.307),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.8, {
-        'right_shoulder': (44.325, -23.052, -3.45), 'right_elbow': (32.358, -9.283),
-        'right_wrist': (-57.638, 18.626),
+        'right_shoulder': (40.965, -20.042, 0.993), 'right_elbow': (41.65, -9.283),
+        'right_wrist': (-53.999, 15.759),
     })
     human.KeyJoints(13.9, {
-        'right_shoulder': (43.394, -22.328, -3.638), 'right_elbow': (30.112, 9.929),
-        'right_wrist': (-56.148, 17.741),
+        'right_shoulder': (40.419, -19.344, 0.779), 'right_elbow': (38.952, 9.929),
+        'right_wrist': (-52.766, 14.812),
     })
     human.KeyJoints(14.0, {
-        'right_shoulder': (42.119, -19.954, -4.418), 'right_elbow': (27.449, 42.548),
-        'right_wrist': (-54.807, 16.759),
+        'right_shoulder': (39.595, -17.089, -0.136), 'right_elbow': (35.815, 42.548),
+        'right_wrist': (-51.478, 13.742),
     })
     human.KeyJoints(14.1, {
-        'right_shoulder': (41.522, -17.123, -5.436), 'right_elbow': (26.727, 71.321),
-        'right_wrist': (-54.461, 16.233),
+        'right_shoulder': (39.217, -14.399, -1.34), 'right_elbow': (34.888, 71.321),
+        'right_wrist': (-51.051, 13.227),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.2, {
-        'right_shoulder': (41.461, -16.317, -5.723), 'right_elbow': (26.826, 79.071),
-        'right_wrist': (-54.49, 16.127),
+        'right_shoulder': (39.194, -13.631, -1.68), 'right_elbow': (34.95, 79.071),
+        'right_wrist': (-51.044, 13.132),
     })
     human.KeyJoints(14.3, {
-        'right_shoulder': (41.698, -18.363, -4.988), 'right_elbow': (26.834, 59.218),
-        'right_wrist': (-54.528, 16.428),
+        'right_shoulder': (39.323, -15.576, -0.81), 'right_elbow': (35.057, 59.218),
+        'right_wrist': (-51.155, 13.408),
     })
     human.KeyJoints(14.4, {
-        'right_shoulder': (42.702, -21.275, -3.964), 'right_elbow': (28.513, 26.466),
-        'right_wrist': (-55.294, 17.167),
+        'right_shoulder': (39.967, -18.345, 0.396), 'right_elbow': (37.106, 26.466),
+        'right_wrist': (-51.999, 14.19),
     })
     human.KeyJoints(14.5, {
-        'right_shoulder': (43.932, -22.851, -3.5), 'right_elbow': (31.504, -1.932),
-        'right_wrist': (-57.027, 18.273),
+        'right_shoulder': (40.758, -19.839, 0.94), 'right_elbow': (40.557, -1.932),
+        'right_wrist': (-53.48, 15.369),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.6, {
-        'right_shoulder': (44.303, -23.042, -3.452), 'right_elbow': (32.301, -8.833),
-        'right_wrist': (-57.595, 18.601),
+        'right_shoulder': (40.953, -20.032, 0.991), 'right_elbow': (41.581, -8.833),
+        'right_wrist': (-53.966, 15.734),
     })
     human.KeyJoints(14.7, {
-        'right_shoulder': (43.319, -22.235, -3.665), 'right_elbow': (29.926, 11.646),
-        'right_wrist': (-56.041, 17.673),
+        'right_shoulder': (40.37, -19.256, 0.747), 'right_elbow': (38.738, 11.646),
     })
     human.KeyJoints(14.8, {
-        'right_shoulder': (42.067, -19.775, -4.48), 'right_elbow': (27.336, 44.516),
-        'right_wrist': (-54.753, 16.713),
+        'right_shoulder': (39.554, -16.921, -0.211), 'right_elbow': (35.698, 44.516),
+        'right_wrist': (-51.432, 13.698),
     })
     human.KeyJoints(14.9, {
-        'right_shoulder': (41.509, -16.998, -5.481), 'right_elbow': (26.734, 72.525),
-        'right_wrist': (-54.462, 16.215),
+        'right_shoulder': (39.211, -14.279, -1.393), 'right_elbow': (34.889, 72.525),
+        'right_wrist': (-51.046, 13.211),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(15.0, {
-        'right_shoulder': (41.464, -16.369, -5.705), 'right_elbow': (26.816, 78.57),
-        'right_wrist': (-54.487, 16.133),
+        'right_shoulder': (39.194, -13.68, -1.658), 'right_elbow': (34.942, 78.57),
+        'right_wrist': (-51.043, 13.138),
     })
     human.KeyJoints(15.1, {
-        'right_shoulder': (41.739, -18.536, -4.925), 'right_elbow': (26.862, 57.48),
-        'right_wrist': (-54.539, 16.457),
+        'right_shoulder': (39.344, -15.741, -0.736), 'right_elbow': (35.108, 57.48),
+        'right_wrist': (-51.179, 13.438),
     })
     human.KeyJoints(15.2, {
-        'right_shoulder': (42.779, -21.418, -3.918), 'right_elbow': (28.679, 24.506),
-        'right_wrist': (-55.376, 17.226),
+        'right_shoulder': (40.017, -18.481, 0.45), 'right_elbow': (37.299, 24.506),
+        'right_wrist': (-52.077, 14.254),
     })
     human.KeyJoints(15.3, {
-        'right_shoulder': (43.987, -22.89, -3.49), 'right_elbow': (31.65, -3.098),
-        'right_wrist': (-57.128, 18.332),
+        'right_shoulder': (40.791, -19.876, 0.951), 'right_elbow': (40.726, -3.098),
+        'right_wrist': (-53.558, 15.429),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
     human.KeyJoints(15.4, {
-        'right_shoulder': (44.36, -23.068, -3.447), 'right_elbow': (32.449, -10.0),
-        'right_wrist': (-57.709, 18.665),
+        'right_shoulder': (40.985, -20.058, 0.997), 'right_elbow': (41.76, -10.0),
+        'right_wrist': (-54.053, 15.799),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.379864)
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
     human.KeyJoints(15.5, {
-        'neck': (31.186, -24.764, 12.781), 'right_shoulder': (43.764, -22.084, -3.763),
-        'right_elbow': (31.108, -10.0), 'right_wrist': (-56.939, 18.147),
+        'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
+        'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
+        'right_wrist': (-53.413, 15.296),
     })
     human.KeyJoints(15.6, {
-        'right_shoulder': (42.779, -20.458, -4.285), 'right_elbow': (28.895, -10.0),
-        'right_wrist': (-55.669, 17.292),
+        'right_shoulder': (40.145, -18.157, 0.275), 'right_elbow': (37.885, -10.0),
+        'right_wrist': (-52.356, 14.465),
     })
     human.KeyJoints(15.7, {
-        'right_shoulder': (41.898, -19.005, -4.752), 'right_elbow': (26.916, -10.0),
-        'right_wrist': (-54.533, 16.528),
+        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
+        'right_wrist': (-51.411, 13.723),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(15.8, {'neck': (31.213, -25.127, 12.911)})
+    human.KeyJoints(15.8, {'neck': (30.989, -25.025, 10.522)})
+    human.KeyJoints(15.9, {'head': (15.0, 11.25)})
     human.KeyJoints(18.7, {
-        'spine_lumbar': (54.538, -18.994, 4.91), 'spine_thoracic': (-13.825, 9.882, -10.757),
-        'neck': (31.213, -25.13, 12.912), 'head': (15.0, 11.25), 'right_clavicle': (-9.1, 14.352),
-        'right_shoulder': (41.898, -19.005, -4.752), 'right_elbow': (26.916, -10.0),
-        'right_wrist': (-54.533, 16.528), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (-42.214, 38.635, -75.484), 'left_elbow': (95.633, 30.855),
-        'left_wrist': (-67.351, 8.687),
+        'spine_lumbar': (54.717, -19.058, 6.16), 'spine_thoracic': (-12.652, 9.915, -9.144),
+        'neck': (30.989, -25.03, 10.525), 'head': (15.0, 11.25), 'right_clavicle': (-9.216, 14.273),
+        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
+        'right_wrist': (-51.411, 13.723), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (-41.45, 39.188, -75.798), 'left_elbow': (95.45, 31.457),
+        'left_wrist': (-68.031, 8.981),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: gaze on head
     human.KeyJoints(18.8, {
-        'spine_lumbar': (43.567, -15.262, 3.912), 'spine_thoracic': (-10.093, 7.417, -8.57),
-        'neck': (23.469, -18.895, 9.709), 'head': (11.278, 8.507),
-        'right_clavicle': (-7.25, 11.435), 'right_shoulder': (35.267, -13.534, -7.869),
-        'right_elbow': (28.031, -4.437), 'right_wrist': (-42.949, 12.946),
-        'left_clavicle': (-7.967, 11.898), 'left_shoulder': (-31.698, 32.323, -64.087),
-        'left_elbow': (83.007, 28.075), 'left_wrist': (-53.427, 6.919),
+        'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
+        'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
+        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
+        'right_elbow': (35.037, -4.545), 'right_wrist': (-40.73, 10.834),
+        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
+        'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
     })
     human.KeyJoints(18.9, {
-        'spine_lumbar': (22.792, -7.269, 1.826), 'spine_thoracic': (-2.804, 2.662, -4.0),
-        'neck': (8.655, -6.968, 3.581), 'head': (4.159, 3.162), 'right_clavicle': (-3.384, 5.337),
-        'right_shoulder': (21.09, -2.295, -14.345), 'right_elbow': (31.357, 7.146),
-        'right_wrist': (-20.004, 6.018), 'left_clavicle': (-3.719, 5.532),
-        'left_shoulder': (-10.186, 19.133, -40.562), 'left_elbow': (56.927, 22.261),
-        'left_wrist': (-24.847, 3.21),
+        'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
+        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
+        'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
+        'right_wrist': (-19.323, 5.147), 'left_clavicle': (-3.808, 5.667),
+        'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
+        'left_wrist': (-25.711, 3.4),
     })
     human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
-        'spine_lumbar': (11.195, -0.055, 0.182), 'spine_thoracic': (1.927, 0.005, -0.4),
-        'neck': (-0.06, 0.048, -0.025), 'head': (-0.029, 0.014), 'right_clavicle': (-0.338, 0.533),
-        'right_shoulder': (9.872, 6.551, -19.448), 'right_elbow': (34.027, 16.249),
-        'right_wrist': (-1.866, 0.557), 'left_clavicle': (-0.371, 0.518),
-        'left_shoulder': (6.867, 8.726, -21.963), 'left_elbow': (36.322, 17.695),
-        'left_wrist': (-2.326, 0.279), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
+        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
+        'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
+        'right_wrist': (-2.049, 0.569), 'left_clavicle': (-0.428, 0.603),
+        'left_shoulder': (6.609, 8.924, -22.29), 'left_elbow': (36.66, 17.797),
+        'left_wrist': (-2.734, 0.34), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
     human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.1, {
-        'spine_lumbar': (11.241, 10.546, 0.0), 'spine_thoracic': (1.793, 2.125, 0.0),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.534, -20.016),
-        'right_elbow': (34.345, 17.247), 'right_wrist': (0.125, -0.04),
-        'left_clavicle': (0.0, -0.032), 'left_shoulder': (8.762, 7.55, -19.911),
-        'left_elbow': (34.064, 17.189), 'left_wrist': (0.144, -0.044),
+        'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
+        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
+        'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
+        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.761, 7.55, -19.913),
+        'left_elbow': (34.061, 17.189), 'left_wrist': (0.143, -0.046),
         'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
         'left_knee': (132.894,),
     })
     human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.2, {
-        'spine_lumbar': (-6.898, 20.0, 0.0), 'spine_thoracic': (-3.453, 10.0, 0.0),
+        'spine_lumbar': (-6.898, 20.0, 0.0), 'spine_thoracic': (-3.456, 10.0, 0.0),
         'right_hip': (30.866, -0.002, -0.001), 'right_knee': (132.895,),
         'right_ankle': (15.162, 0.004), 'left_hip': (30.866, 0.002, 0.001), 'left_knee': (132.895,),
         'left_ankle': (15.162, -0.004), 'right_toes': (86.736,), 'left_toes': (86.736,),
     })
     human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.978, 10.0, 0.0),
-        'right_shoulder': (8.623, 7.534, -20.011), 'right_elbow': (34.294, 17.221),
-        'right_wrist': (0.073, -0.037), 'left_shoulder': (8.697, 7.521, -19.948),
-        'left_elbow': (34.206, 17.189), 'left_wrist': (0.081, -0.024),
+        'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
+        'right_shoulder': (8.622, 7.533, -20.017), 'right_elbow': (34.289, 17.22),
+        'right_wrist': (0.068, -0.019), 'left_shoulder': (8.696, 7.521, -19.948),
+        'left_elbow': (34.204, 17.189), 'left_wrist': (0.081, -0.024),
         'right_hip': (28.486, -0.424, -0.166), 'right_knee': (130.517,),
         'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
         'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
     })
     human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
-        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.929, 10.0, 0.0),
-        'right_shoulder': (8.391, 7.125, -19.902), 'right_elbow': (35.707, 17.208),
-        'right_wrist': (-0.012, 0.302), 'left_shoulder': (7.58, 7.447, -20.083),
-        'left_elbow': (36.515, 17.189), 'left_wrist': (-0.153, 0.485),
+        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.93, 10.0, 0.0),
+        'right_shoulder': (8.393, 7.123, -19.905), 'right_elbow': (35.707, 17.208),
+        'right_wrist': (-0.015, 0.314), 'left_shoulder': (7.579, 7.447, -20.084),
+        'left_elbow': (36.514, 17.189), 'left_wrist': (-0.154, 0.485),
         'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
         'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
         'right_toes': (86.604,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.125, 10.0, 0.0),
-        'right_shoulder': (8.109, 6.349, -19.675), 'right_elbow': (38.237, 17.195),
-        'right_wrist': (-0.132, 0.913), 'left_shoulder': (5.567, 7.363, -20.335),
-        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.565, 1.413),
+        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.126, 10.0, 0.0),
+        'right_shoulder': (8.11, 6.348, -19.676), 'right_elbow': (38.237, 17.195),
+        'right_wrist': (-0.133, 0.917), 'left_shoulder': (5.567, 7.363, -20.335),
+        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.566, 1.413),
         'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
         'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
         'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
@@ -1038,7 +1032,7 @@ def replace_fuel_filter():
     human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.2, {
         'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
-        'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
         'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
         'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
     })

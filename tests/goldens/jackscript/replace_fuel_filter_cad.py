@@ -338,21 +338,18 @@ def replace_fuel_filter_cad():
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.037, 15.237, 13.165), 'spine_thoracic': (-7.996, 9.013, 19.73),
         'neck': (35.0, 30.357, -18.818), 'head': (11.226, -11.146),
-        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.301, 18.164, 6.002),
+        'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.28, 18.167, 6.002),
+        'right_elbow': (28.13, 17.195),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (39.657, 15.845, 13.22), 'spine_thoracic': (-8.225, 9.05, 20.036),
         'neck': (34.998, 30.285, -19.238), 'head': (13.21, -11.169),
-        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.459, 17.83, 6.059),
-        'right_elbow': (28.117, 17.195),
+        'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.278, 17.849, 6.058),
+        'right_elbow': (28.414, 17.195),
     })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {
-        'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101),
-        'right_shoulder': (33.274, 17.845, 6.059), 'right_elbow': (28.425, 17.195),
-        'right_wrist': (-1.717, -1.983),
-    })
+    human.KeyJoints(5.0, {'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (28.425, 17.164)})
     human.KeyJoints(5.3, {'right_elbow': (28.465, 12.272)})
@@ -362,7 +359,7 @@ def replace_fuel_filter_cad():
     human.KeyJoints(5.5, {'right_elbow': (28.636, -15.365)})
     human.KeyJoints(5.6, {'right_elbow': (28.687, -33.451)})
     human.KeyJoints(5.7, {'right_elbow': (28.682, -51.278)})
-    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515)})
+    human.KeyJoints(5.8, {'right_elbow': (28.635, -66.515), 'right_wrist': (-1.609, -1.962)})
     human.KeyJoints(5.9, {
         'right_shoulder': (33.319, 18.306, 5.94), 'right_elbow': (28.582, -76.834),
     })
@@ -375,585 +372,558 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(6.4, {
         'right_shoulder': (33.319, 18.3, 5.942), 'right_elbow': (28.589, -75.532),
-        'right_wrist': (-1.606, -1.974),
     })
     human.KeyJoints(6.5, {'right_elbow': (28.662, -59.213)})
-    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545)})
-    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363), 'right_wrist': (-1.7, -1.946)})
+    human.KeyJoints(6.6, {'right_elbow': (28.689, -34.545), 'right_wrist': (-1.651, -1.932)})
+    human.KeyJoints(6.7, {'right_elbow': (28.586, -5.363)})
     human.KeyJoints(6.8, {
         'right_shoulder': (33.27, 17.826, 6.064), 'right_elbow': (28.363, 24.501),
     })
-    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211)})
+    human.KeyJoints(6.9, {'right_elbow': (28.114, 51.211), 'right_wrist': (-1.682, -2.039)})
     human.KeyJoints(7.0, {'right_elbow': (27.934, 70.933)})
-    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835), 'right_wrist': (-1.622, -2.046)})
+    human.KeyJoints(7.1, {'right_elbow': (27.86, 79.835)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:42:9 replace_fuel_filter_cad > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=7.186814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TA on l_arm at filter_bowl
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
-    human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=2.373581)
+    human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=1.873581)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (39.652, 15.854, 13.22), 'spine_thoracic': (-8.228, 9.051, 20.039),
-        'neck': (34.968, 30.289, -18.988), 'head': (13.938, -11.097),
-        'right_shoulder': (33.248, 17.84, 6.061), 'right_elbow': (27.859, 80.0),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.595, 5.73, 11.459),
-        'left_elbow': (34.378, 17.189),
+        'spine_lumbar': (39.653, 15.853, 13.22), 'spine_thoracic': (-8.228, 9.051, 20.039),
+        'neck': (34.97, 30.288, -18.996), 'head': (13.933, -11.098),
+        'right_shoulder': (33.247, 17.841, 6.061), 'right_elbow': (27.86, 80.0),
+        'right_wrist': (-1.622, -2.045), 'left_clavicle': (0.0, 0.001),
+        'left_shoulder': (8.594, 5.729, 11.458), 'left_elbow': (34.379, 17.189),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.077, 15.696, 12.939), 'spine_thoracic': (-8.36, 8.992, 19.797),
-        'neck': (34.386, 30.554, -17.284), 'head': (14.757, -11.049),
-        'right_clavicle': (-9.657, 13.039), 'right_shoulder': (33.379, 17.305, 6.316),
-        'right_elbow': (28.214, 80.0), 'right_wrist': (-1.698, -1.985),
-        'left_clavicle': (-0.209, 0.255), 'left_shoulder': (9.145, 5.765, 11.388),
-        'left_elbow': (34.435, 17.188), 'left_wrist': (-0.025, 0.005),
+        'spine_lumbar': (40.18, 15.601, 12.967), 'spine_thoracic': (-8.404, 8.966, 19.87),
+        'neck': (34.466, 30.364, -17.661), 'head': (14.539, -10.905),
+        'right_clavicle': (-9.681, 13.048), 'right_shoulder': (33.09, 17.393, 6.181),
+        'right_elbow': (28.766, 80.0), 'right_wrist': (-1.861, -1.97),
+        'left_clavicle': (-0.254, 0.39), 'left_shoulder': (8.507, 5.545, 11.105),
+        'left_elbow': (34.972, 17.188), 'left_wrist': (-0.019, -0.019),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (41.94, 15.003, 11.704), 'spine_thoracic': (-8.942, 8.733, 18.735),
-        'neck': (34.887, 32.527, -13.113), 'head': (14.999, -11.232),
-        'right_clavicle': (-9.562, 13.227), 'right_shoulder': (33.923, 14.955, 7.433),
-        'right_elbow': (29.728, 79.999), 'right_wrist': (-2.023, -1.722),
-        'left_clavicle': (-1.126, 1.369), 'left_shoulder': (11.56, 5.922, 11.076),
-        'left_elbow': (34.689, 17.183),
+        'spine_lumbar': (42.528, 14.479, 11.838), 'spine_thoracic': (-9.185, 8.588, 19.117),
+        'neck': (34.204, 31.64, -14.638), 'head': (15.0, -11.246),
+        'right_clavicle': (-9.694, 13.279), 'right_shoulder': (32.336, 15.416, 6.722),
+        'right_elbow': (32.845, 80.0), 'right_wrist': (-2.943, -1.61),
+        'left_clavicle': (-1.382, 2.121), 'left_shoulder': (8.223, 4.73, 9.564),
+        'left_elbow': (37.555, 17.185),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (45.331, 13.741, 9.448), 'spine_thoracic': (-10.013, 8.263, 16.795),
-        'neck': (35.0, 33.75, -8.341), 'right_shoulder': (34.775, 10.668, 9.47),
-        'right_elbow': (32.333, 79.996), 'left_clavicle': (-2.802, 3.405),
-        'left_shoulder': (16.021, 6.214, 10.501), 'left_elbow': (35.185, 17.174),
-        'left_wrist': (-0.346, 0.069),
+        'spine_lumbar': (46.824, 12.425, 9.772), 'spine_thoracic': (-10.615, 7.896, 17.738),
+        'neck': (34.964, 33.48, -10.221), 'right_shoulder': (31.352, 11.775, 7.74),
+        'right_elbow': (39.505, 80.0), 'right_wrist': (-4.721, -0.875),
+        'left_clavicle': (-3.447, 5.288), 'left_shoulder': (9.078, 3.354, 7.143),
+        'left_elbow': (41.499, 17.181), 'left_wrist': (-0.263, -0.23),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (49.482, 12.177, 6.621), 'spine_thoracic': (-11.386, 7.681, 14.366),
-        'neck': (35.0, 33.75, -2.776), 'head': (15.0, -11.25), 'right_clavicle': (-9.168, 14.011),
-        'right_shoulder': (35.6, 5.369, 12.0), 'right_elbow': (35.225, 79.99),
-        'right_wrist': (-3.177, -0.695), 'left_clavicle': (-4.921, 5.956),
-        'left_shoulder': (21.813, 6.57, 9.765), 'left_elbow': (35.958, 17.164),
+        'spine_lumbar': (51.668, 10.11, 7.444), 'spine_thoracic': (-12.228, 7.117, 16.184),
+        'neck': (35.0, 33.75, -6.418), 'head': (15.0, -11.25),
+        'right_shoulder': (30.517, 7.657, 8.943), 'right_elbow': (46.295, 80.0),
+        'right_wrist': (-6.527, 0.04), 'left_clavicle': (-5.774, 8.86),
+        'left_shoulder': (14.489, 2.338, 5.817), 'left_elbow': (43.68, 17.179),
+        'left_wrist': (-0.519, -0.183),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (52.894, 10.809, 3.934), 'spine_thoracic': (-12.723, 7.15, 12.069),
-        'neck': (35.0, 30.167, 1.95), 'head': (15.0, -10.056),
-        'right_shoulder': (36.395, 0.526, 14.331), 'right_elbow': (36.637, 79.972),
-        'right_wrist': (-3.409, -0.269), 'left_clavicle': (-7.035, 8.371),
-        'left_shoulder': (27.744, 6.687, 9.102), 'left_elbow': (37.131, 17.155),
-        'left_wrist': (-0.924, 0.313),
+        'spine_lumbar': (55.618, 8.221, 5.544), 'spine_thoracic': (-13.543, 6.481, 14.916),
+        'neck': (35.0, 33.75, -2.846), 'head': (15.0, -10.981), 'right_clavicle': (-9.763, 14.569),
+        'right_shoulder': (29.862, 4.336, 9.966), 'right_elbow': (51.613, 80.0),
+        'right_wrist': (-7.94, 0.849), 'left_clavicle': (-7.673, 11.773),
+        'left_shoulder': (22.771, 2.586, 6.465), 'left_elbow': (45.224, 17.194),
+        'left_wrist': (-1.063, 0.719),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (53.23, 10.385, 2.287), 'spine_thoracic': (-13.453, 6.853, 10.69),
-        'neck': (35.0, 7.31, 5.843), 'head': (15.0, -2.437), 'right_clavicle': (-8.766, 14.811),
-        'right_shoulder': (38.176, -2.212, 15.576), 'right_elbow': (32.738, 79.926),
-        'right_wrist': (-2.301, -0.327), 'left_clavicle': (-8.673, 9.804),
-        'left_shoulder': (31.852, 5.792, 8.978), 'left_elbow': (38.802, 17.154),
-        'left_wrist': (-1.095, 0.638),
+        'spine_lumbar': (58.419, 6.882, 4.197), 'spine_thoracic': (-14.475, 6.03, 14.017),
+        'neck': (35.0, 33.005, -0.866), 'head': (15.0, -11.096), 'right_clavicle': (-9.777, 14.845),
+        'right_shoulder': (29.403, 2.031, 10.746), 'right_elbow': (55.288, 80.0),
+        'right_wrist': (-8.955, 1.472), 'left_clavicle': (-9.019, 13.838),
+        'left_shoulder': (26.835, 4.109, 7.749), 'left_elbow': (52.95, 17.244),
     })
     # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (51.542, 10.713, 1.905), 'spine_thoracic': (-13.482, 6.796, 10.396),
-        'neck': (35.0, -20.418, 8.789), 'head': (15.0, 6.806), 'right_clavicle': (-8.685, 14.972),
-        'right_shoulder': (40.738, -2.914, 15.7), 'right_elbow': (25.762, 79.882),
-        'right_wrist': (-0.444, -0.7), 'left_clavicle': (-9.401, 10.083),
-        'left_shoulder': (33.046, 4.548, 9.275), 'left_elbow': (40.03, 17.158),
-        'left_wrist': (-1.097, 0.926),
+        'spine_lumbar': (59.762, 6.24, 3.552), 'spine_thoracic': (-14.922, 5.814, 13.587),
+        'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.784, 14.977),
+        'right_shoulder': (29.19, 0.972, 11.181), 'right_elbow': (57.012, 80.0),
+        'right_wrist': (-9.498, 1.802), 'left_clavicle': (-9.664, 14.828),
+        'left_shoulder': (25.924, 5.566, 8.431), 'left_elbow': (62.399, 17.296),
+        'left_wrist': (-3.411, 6.256),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'spine_lumbar': (51.154, 10.797, 1.86), 'neck': (35.0, -33.75, 9.944),
-        'head': (15.0, 11.25), 'right_shoulder': (41.313, -3.019, 15.697),
-        'right_elbow': (24.211, 79.874), 'right_wrist': (-0.039, -0.783),
-        'left_clavicle': (-9.524, 10.11), 'left_shoulder': (33.208, 4.289, 9.346),
-        'left_elbow': (40.263, 17.159),
+        'spine_lumbar': (59.995, 6.129, 3.44), 'neck': (35.0, 32.998, -0.682),
+        'right_shoulder': (29.153, 0.79, 11.257), 'right_elbow': (57.31, 80.0),
+        'right_wrist': (-9.592, 1.86), 'left_clavicle': (-9.776, 15.0),
+        'left_shoulder': (25.563, 5.863, 8.546), 'left_elbow': (64.412, 17.306),
+        'left_wrist': (-3.647, 6.836),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, -33.518, 9.777), 'head': (15.0, 11.167),
-        'right_shoulder': (41.311, -3.018, 15.689), 'right_elbow': (24.213, 79.856),
-        'right_wrist': (-0.028, -0.78),
+        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 32.945, -1.001),
+        'right_shoulder': (30.46, 1.012, 11.058), 'right_elbow': (54.597, 79.961),
+        'right_wrist': (-8.849, 1.691),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, -29.351, 6.763), 'head': (15.0, 9.679),
-        'right_shoulder': (41.145, -2.921, 14.957), 'right_elbow': (24.373, 78.347),
-        'right_wrist': (0.868, -0.547),
+        'neck': (35.0, 32.041, -6.416), 'right_shoulder': (34.681, 1.939, 7.941),
+        'right_elbow': (45.282, 76.894), 'right_wrist': (-4.121, 1.583),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, -21.117, 0.808), 'head': (15.0, 6.738),
-        'right_shoulder': (40.436, -2.507, 11.84), 'right_elbow': (25.057, 71.925),
-        'right_wrist': (4.682, 0.444),
+        'neck': (35.0, 30.436, -16.029), 'head': (15.0, -11.161),
+        'right_shoulder': (37.594, 3.277, -2.505), 'right_elbow': (36.989, 64.922),
+        'right_wrist': (6.941, 2.975),
     })
     human.KeyJoints(8.4, {
-        'neck': (35.0, -10.331, -6.993), 'head': (15.0, 2.886),
-        'right_shoulder': (38.773, -1.533, 4.563), 'right_elbow': (26.645, 56.959),
-        'right_wrist': (13.566, 2.753),
+        'neck': (35.0, 28.675, -26.574), 'right_shoulder': (35.155, 4.564, -22.079),
+        'right_elbow': (37.549, 41.299), 'right_wrist': (24.281, 6.809),
     })
     human.KeyJoints(8.5, {
-        'neck': (35.0, 1.493, -15.545), 'head': (15.0, -1.337),
-        'right_shoulder': (35.7, 0.279, -8.497), 'right_elbow': (29.427, 30.334),
-        'right_wrist': (29.312, 6.848),
+        'neck': (35.0, 27.305, -34.783), 'right_shoulder': (31.267, 5.991, -44.103),
+        'right_elbow': (40.312, 14.573), 'right_wrist': (43.112, 11.257),
     })
     human.KeyJoints(8.6, {
-        'neck': (35.0, 12.841, -23.752), 'head': (15.0, -5.389),
-        'right_shoulder': (32.627, 2.152, -20.665), 'right_elbow': (31.806, 6.111),
-        'right_wrist': (43.457, 10.541),
+        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (28.326, 7.623, -61.346),
+        'right_elbow': (41.527, -6.232), 'right_wrist': (57.207, 14.564),
     })
     human.KeyJoints(8.7, {
-        'neck': (35.0, 22.196, -30.518), 'head': (15.0, -8.731),
-        'right_shoulder': (29.901, 3.957, -30.44), 'right_elbow': (33.308, -12.572),
-        'right_wrist': (54.018, 13.328), 'left_wrist': (-1.093, 0.982),
+        'right_shoulder': (26.389, 10.046, -74.07), 'right_elbow': (40.104, -21.278),
+        'right_wrist': (65.965, 16.569), 'left_elbow': (64.315, 17.306),
     })
     human.KeyJoints(8.8, {
-        'neck': (35.0, 28.046, -34.749), 'head': (15.0, -10.82),
-        'right_shoulder': (27.327, 5.983, -38.772), 'right_elbow': (33.827, -27.572),
-        'right_wrist': (61.826, 15.453),
-    })
-    human.KeyJoints(8.9, {
-        'neck': (35.0, 29.251, -35.62), 'head': (15.0, -11.25),
-        'right_shoulder': (24.993, 8.521, -45.859), 'right_elbow': (32.848, -39.284),
-        'right_wrist': (66.617, 16.892),
-    })
-    human.KeyJoints(9.0, {
-        'right_shoulder': (23.247, 11.864, -51.575), 'right_elbow': (29.608, -47.683),
-        'right_wrist': (67.688, 17.522),
-    })
-    human.KeyJoints(9.1, {
-        'right_shoulder': (22.506, 15.958, -55.674), 'right_elbow': (23.924, -52.847),
-        'right_wrist': (64.9, 17.317),
-    })
-    human.KeyJoints(9.2, {
-        'right_shoulder': (22.629, 19.933, -58.215), 'right_elbow': (17.49, -55.538),
-        'right_wrist': (60.194, 16.645),
+        'right_shoulder': (25.492, 13.609, -82.351), 'right_elbow': (35.39, -30.55),
+        'right_wrist': (68.919, 17.158),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
-    human.KeyJoints(9.3, {
-        'right_shoulder': (22.959, 22.708, -59.616), 'right_elbow': (12.753, -56.849),
-        'right_wrist': (56.398, 16.055),
-    })
-    human.KeyJoints(9.4, {
-        'right_shoulder': (23.126, 23.91, -60.188), 'right_elbow': (10.675, -57.364),
-        'right_wrist': (54.703, 15.787),
+    human.KeyJoints(8.9, {
+        'head': (15.0, -11.25), 'right_shoulder': (25.27, 16.255, -86.105),
+        'right_elbow': (31.292, -34.484),
     })
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=9.488396, duration=0.072)
-    human.KeyJoints(9.5, {
-        'neck': (35.0, 29.251, -35.62), 'right_shoulder': (23.184, 24.112, -60.262),
-        'right_elbow': (10.302, -57.432), 'right_wrist': (54.352, 15.723),
+    human.Grasp('right_hand', 'open', start=8.988396, duration=0.072)
+    human.KeyJoints(9.0, {
+        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (25.246, 16.687, -86.651),
+        'right_elbow': (30.605, -35.047), 'right_wrist': (68.733, 17.018),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=9.560396, duration=0.4)
-    human.KeyJoints(9.6, {'neck': (34.998, 29.145, -35.96)})
-    human.KeyJoints(9.7, {'neck': (34.971, 28.172, -39.089)})
-    human.KeyJoints(9.8, {
-        'spine_lumbar': (51.154, 10.797, 1.86), 'spine_thoracic': (-13.469, 6.79, 10.364),
-        'neck': (34.916, 26.764, -43.619), 'left_shoulder': (33.208, 4.289, 9.346),
-        'left_elbow': (40.263, 17.159), 'left_wrist': (-1.093, 0.982),
+    human.LookAt((-40.0, 10.0, 60.0), start=9.060396, duration=0.4)
+    human.KeyJoints(9.1, {'neck': (34.997, 26.821, -37.839)})
+    human.KeyJoints(9.2, {'neck': (34.959, 26.522, -41.096)})
+    human.KeyJoints(9.3, {
+        'spine_lumbar': (59.995, 6.129, 3.44), 'spine_thoracic': (-15.0, 5.777, 13.512),
+        'neck': (34.88, 26.089, -45.81), 'left_shoulder': (25.623, 5.851, 8.548),
+        'left_elbow': (64.315, 17.306), 'left_wrist': (-3.637, 6.81),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
-    human.KeyJoints(9.9, {
-        'spine_lumbar': (51.223, 10.869, 1.728), 'spine_thoracic': (-13.42, 6.675, 10.049),
-        'neck': (34.832, 25.642, -47.231), 'left_clavicle': (-9.524, 10.148),
-        'left_shoulder': (33.25, 4.313, 9.468), 'left_elbow': (40.18, 17.451),
-        'left_wrist': (-1.546, 1.13),
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (59.995, 6.275, 3.246), 'spine_thoracic': (-14.882, 5.648, 13.054),
+        'neck': (34.758, 25.744, -49.569), 'left_clavicle': (-9.758, 15.0),
+        'left_shoulder': (25.128, 6.078, 8.628), 'left_elbow': (64.954, 17.693),
+        'left_wrist': (-4.24, 6.948),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.960396, duration=1.931992)
-    human.KeyJoints(10.0, {
-        'spine_lumbar': (51.833, 11.504, 0.566), 'spine_thoracic': (-12.982, 5.661, 7.265),
-        'neck': (34.618, 25.973, -46.487), 'head': (15.0, -11.238), 'right_wrist': (54.476, 15.752),
-        'left_clavicle': (-9.523, 10.485), 'left_shoulder': (33.623, 4.528, 10.544),
-        'left_elbow': (39.44, 20.031), 'left_wrist': (-5.548, 2.441),
+    human.LookAt((10.0, 25.0, 95.0), start=9.460396, duration=1.931992)
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (59.995, 7.568, 1.527), 'spine_thoracic': (-13.838, 4.504, 8.997),
+        'neck': (34.409, 26.221, -48.857), 'left_clavicle': (-9.596, 15.0),
+        'left_shoulder': (20.774, 8.052, 9.326), 'left_elbow': (70.563, 21.115),
+        'left_wrist': (-9.585, 8.177),
     })
-    human.KeyJoints(10.1, {
-        'spine_lumbar': (53.204, 12.93, -2.045), 'spine_thoracic': (-11.965, 3.381, 1.013),
-        'neck': (33.715, 30.342, -33.419), 'right_elbow': (10.398, -57.432),
-        'left_clavicle': (-9.521, 11.241), 'left_shoulder': (34.474, 5.046, 12.957),
-        'left_elbow': (37.726, 25.824), 'left_wrist': (-14.52, 5.38),
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (59.997, 10.464, -2.322), 'spine_thoracic': (-11.488, 1.939, -0.085),
+        'neck': (32.811, 30.451, -35.644), 'head': (15.0, -11.201),
+        'left_clavicle': (-9.236, 14.999), 'left_shoulder': (11.787, 11.571, 10.825),
+        'left_elbow': (81.654, 28.777), 'left_wrist': (-21.536, 10.924),
     })
-    human.KeyJoints(10.2, {
-        'spine_lumbar': (55.121, 14.924, -5.691), 'spine_thoracic': (-10.294, 0.173, -7.728),
-        'neck': (33.046, 33.718, -17.217), 'head': (15.0, -11.073),
-        'left_shoulder': (35.832, 6.001, 16.307), 'left_elbow': (34.945, 33.914),
-        'left_wrist': (-26.906, 9.432),
+    human.KeyJoints(9.7, {
+        'spine_lumbar': (59.998, 14.401, -7.548), 'spine_thoracic': (-8.118, -1.598, -12.428),
+        'neck': (31.62, 33.719, -18.709), 'head': (15.0, -11.068), 'left_clavicle': (-8.774, 14.99),
+        'left_shoulder': (5.809, 12.076, 12.971), 'left_elbow': (86.019, 39.172),
+        'left_wrist': (-37.535, 14.572),
     })
-    human.KeyJoints(10.3, {
-        'spine_lumbar': (57.174, 17.06, -9.581), 'spine_thoracic': (-7.373, -3.404, -17.07),
-        'neck': (35.0, 33.75, -6.272), 'head': (15.0, -11.245), 'left_clavicle': (-9.538, 13.401),
-        'left_shoulder': (38.472, 7.665, 19.728), 'left_elbow': (30.339, 42.478),
-        'left_wrist': (-38.984, 13.363),
+    human.KeyJoints(9.8, {
+        'spine_lumbar': (59.999, 17.304, -11.388), 'spine_thoracic': (-4.38, -4.595, -21.515),
+        'neck': (34.966, 33.736, -6.16), 'head': (14.999, -10.506),
+        'left_clavicle': (-8.651, 14.969), 'left_shoulder': (16.571, 9.535, 16.195),
+        'left_elbow': (66.266, 46.678), 'left_wrist': (-47.512, 16.659),
     })
-    human.KeyJoints(10.4, {
-        'spine_lumbar': (58.869, 18.823, -12.802), 'spine_thoracic': (-1.72, -6.893, -24.796),
-        'neck': (34.914, 29.833, 0.919), 'head': (14.926, -9.347),
-        'left_clavicle': (-9.687, 14.328), 'left_shoulder': (44.887, 10.022, 22.055),
-        'left_elbow': (22.102, 49.245), 'left_wrist': (-44.789, 15.212),
+    human.KeyJoints(9.9, {
+        'spine_lumbar': (60.0, 18.909, -13.52), 'spine_thoracic': (0.687, -7.217, -26.547),
+        'neck': (34.887, 29.549, 1.468), 'head': (14.931, -5.993),
+        'left_clavicle': (-9.123, 14.968), 'left_shoulder': (36.026, 9.813, 19.806),
+        'left_elbow': (37.398, 50.473), 'left_wrist': (-48.629, 16.379),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
-    human.KeyJoints(10.5, {
-        'spine_lumbar': (59.783, 19.774, -14.574), 'spine_thoracic': (4.526, -9.353, -28.996),
-        'neck': (34.019, 3.483, 7.039), 'head': (14.181, 3.458), 'left_clavicle': (-9.926, 14.867),
-        'left_shoulder': (52.85, 11.903, 22.819), 'left_elbow': (13.378, 52.584),
-        'left_wrist': (-43.504, 14.743),
+    human.KeyJoints(10.0, {
+        'spine_lumbar': (60.0, 19.775, -14.693), 'spine_thoracic': (5.685, -9.374, -29.285),
+        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.791, 14.991),
+        'left_shoulder': (51.881, 11.453, 22.307), 'left_elbow': (15.765, 52.263),
+        'left_wrist': (-45.872, 15.144),
     })
-    human.KeyJoints(10.6, {
-        'spine_lumbar': (59.999, 19.999, -14.999), 'spine_thoracic': (6.338, -9.998, -29.997),
-        'neck': (31.884, -11.127, 9.327), 'head': (12.531, 10.534), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (55.214, 12.401, 22.95), 'left_elbow': (10.869, 53.343),
-        'left_wrist': (-42.732, 14.478),
+    human.KeyJoints(10.1, {
+        'spine_lumbar': (60.0, 19.999, -14.999), 'spine_thoracic': (7.175, -9.998, -29.997),
+        'neck': (31.492, -8.768, 9.26), 'head': (12.667, 10.389), 'left_clavicle': (-9.999, 15.0),
+        'left_shoulder': (56.407, 11.962, 22.982), 'left_elbow': (9.671, 52.705),
+        'left_wrist': (-44.709, 14.686),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=10.616383, duration=0.2628)
-    human.KeyJoints(10.7, {
-        'neck': (31.035, -10.915, 9.172), 'head': (11.929, 10.394),
-        'left_shoulder': (55.353, 12.351, 22.953), 'left_elbow': (10.645, 53.346),
-        'left_wrist': (-42.471, 14.398),
+    human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
+    human.KeyJoints(10.2, {
+        'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268), 'right_elbow': (30.675, -35.047),
     })
-    human.KeyJoints(10.8, {'neck': (31.035, -10.915, 9.172)})
+    human.KeyJoints(10.3, {'neck': (30.638, -8.565, 9.124)})
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
+    human.KeyJoints(10.4, {
+        'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
+        'left_shoulder': (56.4, 11.966, 22.971), 'left_elbow': (9.696, 52.704),
+        'left_wrist': (-44.724, 14.689),
+    })
+    human.KeyJoints(10.5, {
+        'neck': (31.5, -7.979, 20.439), 'head': (12.634, 10.463),
+        'left_shoulder': (53.504, 11.893, 20.765), 'left_elbow': (15.46, 52.266),
+        'left_wrist': (-45.586, 14.812),
+    })
+    human.KeyJoints(10.6, {
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (41.907, 11.723, 11.836),
+        'left_elbow': (37.983, 50.464), 'left_wrist': (-48.79, 15.209),
+    })
+    human.KeyJoints(10.7, {
+        'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
+        'left_shoulder': (27.534, 15.327, 5.742), 'left_elbow': (62.757, 44.044),
+        'left_wrist': (-58.878, 12.076),
+    })
+    human.KeyJoints(10.8, {
+        'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
+        'left_shoulder': (7.255, 27.93, 1.289), 'left_elbow': (88.678, 40.141),
+        'left_wrist': (-59.844, -9.223),
+    })
     human.KeyJoints(10.9, {
-        'neck': (31.062, -10.882, 9.571), 'head': (11.95, 10.4),
-        'left_shoulder': (55.319, 12.362, 22.933), 'left_elbow': (10.712, 53.342),
-        'left_wrist': (-42.502, 14.406),
+        'left_shoulder': (-7.22, 22.747, -31.358), 'left_elbow': (95.002, 40.115),
+        'left_wrist': (-59.524, 13.846),
     })
     human.KeyJoints(11.0, {
-        'neck': (31.788, -9.988, 20.421), 'head': (12.516, 10.563),
-        'left_shoulder': (51.844, 13.316, 20.011), 'left_elbow': (17.968, 52.709),
-        'left_wrist': (-43.981, 14.619),
+        'left_shoulder': (-21.565, 31.492, -49.999), 'left_elbow': (96.818, 35.721),
+        'left_wrist': (-62.343, 11.674),
     })
     human.KeyJoints(11.1, {
-        'neck': (33.061, -8.42, 39.446), 'left_shoulder': (42.047, 15.99, 11.682),
-        'left_elbow': (37.995, 50.892), 'left_wrist': (-47.928, 15.149),
-    })
-    human.KeyJoints(11.2, {
-        'neck': (34.28, -6.92, 57.657), 'head': (14.458, 11.123),
-        'left_shoulder': (28.711, 19.587, 0.21), 'left_elbow': (62.099, 48.308),
-        'left_wrist': (-52.714, 15.699),
-    })
-    human.KeyJoints(11.3, {
-        'neck': (34.843, -6.226, 66.069), 'head': (14.896, 11.25),
-        'left_shoulder': (11.306, 24.056, -15.025), 'left_elbow': (82.625, 44.517),
-        'left_wrist': (-57.205, 15.679),
-    })
-    human.KeyJoints(11.4, {
-        'left_shoulder': (-9.316, 28.975, -33.66), 'left_elbow': (89.784, 39.126),
-        'left_wrist': (-59.844, 13.61),
-    })
-    human.KeyJoints(11.5, {
-        'left_shoulder': (-26.502, 34.445, -52.008), 'left_elbow': (89.058, 33.99),
-        'left_wrist': (-61.402, 10.101),
-    })
-    human.KeyJoints(11.6, {
-        'left_shoulder': (-34.051, 39.526, -66.481), 'left_elbow': (92.753, 31.661),
-        'left_wrist': (-63.966, 8.358),
+        'left_shoulder': (-29.742, 38.428, -65.147), 'left_elbow': (97.366, 32.816),
+        'left_wrist': (-64.869, 9.883),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
-    human.KeyJoints(11.7, {
-        'left_shoulder': (-35.53, 41.737, -73.593), 'left_elbow': (97.157, 31.243),
-        'left_wrist': (-65.979, 8.16),
+    human.KeyJoints(11.2, {
+        'left_shoulder': (-33.333, 42.098, -73.51), 'left_elbow': (98.174, 31.436),
+        'left_wrist': (-66.422, 8.967),
     })
-    human.KeyJoints(11.8, {
-        'left_shoulder': (-35.785, 42.239, -75.298), 'left_elbow': (98.337, 31.175),
-        'left_wrist': (-66.499, 8.144),
+    human.KeyJoints(11.3, {
+        'left_shoulder': (-34.183, 42.968, -75.576), 'left_elbow': (98.42, 31.105),
+        'left_wrist': (-66.823, 8.749),
     })
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=11.820387, duration=0.072)
+    human.Grasp('left_hand', 'open', start=11.320387, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.892387, duration=0.572407)
-    human.KeyJoints(12.0, {'neck': (34.858, -6.228, 66.114)})
-    human.KeyJoints(12.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.345, -10.0, -30.0),
-        'right_shoulder': (23.149, 24.071, -60.264),
+    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.678887)
+    human.KeyJoints(11.5, {'neck': (35.0, -5.568, 66.354)})
+    human.KeyJoints(11.6, {
+        'right_shoulder': (25.239, 16.65, -86.65), 'right_wrist': (68.791, 17.033),
+        'left_shoulder': (-34.186, 43.009, -75.59), 'left_elbow': (98.401, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
-    human.KeyJoints(12.2, {
-        'spine_lumbar': (60.0, 19.872, -14.935), 'spine_thoracic': (6.291, -9.936, -29.937),
-        'right_clavicle': (-8.675, 15.0), 'right_shoulder': (23.222, 23.937, -60.201),
-        'right_elbow': (10.444, -57.409), 'right_wrist': (54.489, 15.743),
+    human.KeyJoints(11.7, {
+        'spine_lumbar': (60.0, 19.948, -14.97), 'spine_thoracic': (7.152, -9.974, -29.972),
+        'right_shoulder': (25.264, 16.577, -86.615), 'right_elbow': (30.695, -35.037),
+        'right_wrist': (68.781, 17.025), 'left_shoulder': (-34.178, 42.79, -75.317),
+        'left_elbow': (98.571, 31.103),
     })
-    human.KeyJoints(12.3, {
-        'spine_lumbar': (59.996, 16.696, -13.328), 'spine_thoracic': (4.953, -8.352, -28.37),
-        'head': (14.979, 11.25), 'right_clavicle': (-8.78, 14.999),
-        'right_shoulder': (25.035, 20.613, -58.651), 'right_elbow': (11.591, -56.84),
-        'right_wrist': (54.799, 15.525),
+    human.KeyJoints(11.8, {
+        'spine_lumbar': (59.988, 18.563, -14.176), 'spine_thoracic': (6.387, -9.288, -29.213),
+        'right_clavicle': (-9.792, 14.983), 'right_shoulder': (25.946, 14.633, -85.682),
+        'right_elbow': (31.226, -34.757), 'right_wrist': (68.529, 16.81),
+        'left_shoulder': (-33.978, 36.752, -68.022), 'left_elbow': (103.234, 31.103),
     })
-    human.KeyJoints(12.4, {
-        'spine_lumbar': (59.971, 8.358, -9.111), 'spine_thoracic': (1.389, -4.195, -24.259),
-        'neck': (34.994, -6.275, 66.475), 'right_shoulder': (29.831, 11.832, -54.56),
-        'right_elbow': (14.621, -55.339), 'right_wrist': (55.632, 14.951),
+    human.KeyJoints(11.9, {
+        'spine_lumbar': (59.952, 14.442, -11.815), 'spine_thoracic': (4.113, -7.245, -26.958),
+        'right_shoulder': (27.996, 8.857, -82.94), 'right_elbow': (32.762, -33.924),
+        'right_wrist': (67.78, 16.169), 'left_shoulder': (-33.581, 19.372, -47.363),
+        'left_elbow': (116.497, 31.103), 'left_wrist': (-66.811, 8.741),
+    })
+    human.KeyJoints(12.0, {
+        'spine_lumbar': (59.873, 7.797, -8.008), 'spine_thoracic': (0.446, -3.95, -23.322),
+        'neck': (35.0, -5.152, 66.26), 'right_shoulder': (31.521, -0.283, -78.769),
+        'right_elbow': (34.819, -32.582), 'right_wrist': (66.576, 15.137),
+        'left_shoulder': (-34.525, -2.729, -23.481), 'left_elbow': (132.874, 31.049),
+        'left_wrist': (-67.186, 8.576),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.464794, duration=0.358044)
-    human.KeyJoints(12.5, {
-        'spine_lumbar': (59.693, -2.676, -3.529), 'spine_thoracic': (-3.671, 1.322, -18.818),
-        'neck': (34.895, -6.774, 64.859), 'right_clavicle': (-9.379, 14.956),
-        'right_shoulder': (36.35, -0.263, -48.975), 'right_elbow': (18.764, -53.303),
-        'right_wrist': (56.879, 14.161),
+    human.LookAt((10.0, 25.0, 95.0), start=12.071274, duration=0.451565)
+    human.KeyJoints(12.1, {
+        'spine_lumbar': (59.564, -0.355, -3.336), 'spine_thoracic': (-4.046, 0.104, -18.861),
+        'neck': (34.973, -5.344, 65.549), 'right_clavicle': (-9.854, 14.731),
+        'right_shoulder': (36.561, -10.309, -74.182), 'right_elbow': (35.736, -30.927),
+        'right_wrist': (65.138, 13.869), 'left_shoulder': (-37.198, -11.332, -25.335),
+        'left_elbow': (138.572, 31.103), 'left_wrist': (-66.811, 8.741),
     })
-    human.KeyJoints(12.6, {
-        'spine_lumbar': (57.996, -12.269, 1.321), 'spine_thoracic': (-8.846, 6.2, -14.105),
-        'neck': (33.777, -11.869, 47.441), 'right_clavicle': (-9.454, 14.729),
-        'right_shoulder': (42.058, -12.49, -43.601), 'right_elbow': (22.696, -51.373),
-        'right_wrist': (58.512, 13.401),
+    human.KeyJoints(12.2, {
+        'spine_lumbar': (58.388, -8.173, 1.154), 'spine_thoracic': (-8.327, 4.047, -14.584),
+        'neck': (34.542, -8.646, 54.739), 'right_clavicle': (-9.771, 14.517),
+        'right_shoulder': (41.981, -17.853, -69.731), 'right_elbow': (34.533, -29.311),
+        'right_wrist': (63.924, 12.651), 'left_shoulder': (-38.303, 4.672, -50.548),
+        'left_elbow': (127.856, 31.103),
+    })
+    human.KeyJoints(12.3, {
+        'spine_lumbar': (56.245, -14.119, 4.579), 'spine_thoracic': (-11.548, 7.121, -11.333),
+        'neck': (33.819, -14.195, 36.6), 'right_shoulder': (45.932, -22.73, -65.728),
+        'right_elbow': (32.776, -28.04), 'right_wrist': (63.238, 11.72),
+        'left_shoulder': (-36.464, 26.446, -67.699), 'left_elbow': (111.666, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
-    human.KeyJoints(12.7, {
-        'spine_lumbar': (55.291, -17.598, 4.011), 'spine_thoracic': (-12.3, 9.011, -11.51),
-        'neck': (32.271, -18.719, 23.983), 'right_clavicle': (-9.237, 14.364),
-        'right_shoulder': (44.991, -21.046, -40.129), 'right_elbow': (25.149, -50.145),
-        'right_wrist': (59.994, 12.917),
+    human.KeyJoints(12.4, {
+        'spine_lumbar': (54.606, -17.363, 6.451), 'spine_thoracic': (-13.29, 8.826, -9.561),
+        'neck': (33.104, -19.677, 18.693), 'right_clavicle': (-9.41, 13.996),
+        'right_shoulder': (47.926, -25.344, -63.297), 'right_elbow': (31.718, -27.33),
+        'right_wrist': (62.958, 11.212), 'left_shoulder': (-34.68, 39.598, -74.109),
+        'left_elbow': (101.165, 31.103),
     })
-    human.KeyJoints(12.8, {
-        'spine_lumbar': (54.361, -19.016, 4.727), 'spine_thoracic': (-13.278, 9.77, -10.822),
-        'neck': (31.431, -22.537, 10.901), 'right_clavicle': (-9.148, 14.239),
-        'right_shoulder': (45.735, -23.523, -39.151), 'right_elbow': (25.83, -49.801),
-        'right_wrist': (60.455, 12.782),
+    human.KeyJoints(12.5, {
+        'spine_lumbar': (54.165, -18.19, 6.929), 'spine_thoracic': (-13.734, 9.262, -9.109),
+        'neck': (32.7, -22.774, 8.576), 'right_shoulder': (48.41, -26.048, -62.661),
+        'right_elbow': (31.47, -27.149), 'right_wrist': (62.921, 11.088),
+        'left_shoulder': (-34.19, 42.99, -75.579), 'left_elbow': (98.418, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=12.822839, duration=0.072)
+    human.Grasp('right_hand', 'close', start=12.522839, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.9, {
-        'neck': (31.483, -22.443, 11.072), 'right_shoulder': (45.741, -23.544, -39.143),
-        'right_elbow': (25.835, -49.762), 'right_wrist': (60.459, 12.781),
+    human.KeyJoints(12.6, {
+        'neck': (32.683, -22.906, 8.146), 'right_shoulder': (48.412, -26.052, -62.657),
+        'right_elbow': (31.473, -27.102), 'right_wrist': (62.923, 11.088),
     })
+    human.KeyJoints(12.7, {
+        'right_shoulder': (47.831, -25.093, -63.018), 'right_elbow': (33.326, -11.552),
+        'right_wrist': (63.916, 11.648),
+    })
+    human.KeyJoints(12.8, {
+        'right_shoulder': (47.793, -23.5, -63.312), 'right_elbow': (38.015, 20.107),
+        'right_wrist': (67.182, 13.316),
+    })
+    human.KeyJoints(12.9, {
+        'right_shoulder': (49.443, -22.511, -63.109), 'right_elbow': (42.37, 50.621),
+        'right_wrist': (72.089, 14.964),
+    })
+    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.0, {
-        'right_shoulder': (45.203, -22.445, -39.538), 'right_elbow': (26.712, -37.048),
-        'right_wrist': (60.9, 13.081),
+        'right_shoulder': (50.565, -22.34, -62.914), 'right_elbow': (43.775, 62.742),
+        'right_wrist': (74.379, 15.317),
     })
     human.KeyJoints(13.1, {
-        'right_shoulder': (44.803, -20.2, -40.159), 'right_elbow': (29.33, -9.665),
-        'right_wrist': (62.396, 13.952),
+        'right_clavicle': (-9.366, 13.937), 'right_shoulder': (49.12, -22.601, -63.161),
+        'right_elbow': (41.83, 46.472), 'right_wrist': (71.324, 14.783),
     })
     human.KeyJoints(13.2, {
-        'right_shoulder': (45.556, -18.403, -40.388), 'right_elbow': (33.023, 20.426),
-        'right_wrist': (65.768, 15.419),
+        'right_shoulder': (47.682, -23.733, -63.302), 'right_elbow': (37.151, 14.6),
+        'right_wrist': (66.471, 12.985),
+    })
+    human.KeyJoints(13.3, {
+        'right_shoulder': (47.935, -25.364, -62.934), 'right_elbow': (32.842, -15.619),
+        'right_wrist': (63.661, 11.495),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.3, {
-        'right_shoulder': (46.91, -17.708, -40.297), 'right_elbow': (35.434, 41.332),
-        'right_wrist': (69.487, 16.648),
-    })
     human.KeyJoints(13.4, {
-        'right_shoulder': (48.213, -17.555, -40.136), 'right_elbow': (36.721, 55.404),
-        'right_wrist': (72.465, 17.368),
+        'right_shoulder': (48.404, -26.041, -62.662), 'right_elbow': (31.489, -26.942),
+        'right_wrist': (62.932, 11.093),
     })
     human.KeyJoints(13.5, {
-        'head': (14.94, 11.156), 'right_shoulder': (48.933, -18.3, -39.835),
-        'right_elbow': (39.063, 68.09), 'right_wrist': (73.438, 17.735),
+        'right_shoulder': (47.791, -25.001, -63.046), 'right_elbow': (33.536, -9.967),
+        'right_wrist': (64.037, 11.715),
     })
     human.KeyJoints(13.6, {
-        'right_shoulder': (49.096, -19.359, -39.559), 'right_elbow': (41.393, 77.052),
-        'right_wrist': (72.894, 17.775),
+        'right_shoulder': (47.846, -23.42, -63.312), 'right_elbow': (38.329, 22.102),
+        'right_wrist': (67.456, 13.438),
+    })
+    human.KeyJoints(13.7, {
+        'right_shoulder': (49.559, -22.484, -63.09), 'right_elbow': (42.545, 52.012),
+        'right_wrist': (72.349, 15.019),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.7, {
-        'right_shoulder': (49.165, -19.687, -39.48), 'right_elbow': (42.012, 79.795),
-        'right_wrist': (72.725, 17.816),
-    })
     human.KeyJoints(13.8, {
-        'right_shoulder': (48.878, -17.702, -40.005), 'right_elbow': (37.504, 62.82),
-        'right_wrist': (73.736, 17.764),
+        'right_shoulder': (50.543, -22.341, -62.918), 'right_elbow': (43.753, 62.526),
+        'right_wrist': (74.338, 15.313),
     })
     human.KeyJoints(13.9, {
-        'right_shoulder': (46.134, -17.997, -40.366), 'right_elbow': (34.271, 30.751),
-        'right_wrist': (67.47, 16.025),
+        'right_shoulder': (49.003, -22.641, -63.18), 'right_elbow': (41.613, 44.86),
+        'right_wrist': (71.032, 14.707),
     })
     human.KeyJoints(14.0, {
-        'right_shoulder': (44.896, -19.489, -40.291), 'right_elbow': (30.615, 0.841),
-        'right_wrist': (63.362, 14.415),
+        'right_shoulder': (47.655, -23.823, -63.294), 'right_elbow': (36.84, 12.608),
+        'right_wrist': (66.23, 12.868),
+    })
+    human.KeyJoints(14.1, {
+        'right_shoulder': (47.984, -25.439, -62.905), 'right_elbow': (32.662, -16.977),
+        'right_wrist': (63.558, 11.44),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.1, {
-        'right_shoulder': (44.803, -20.201, -40.159), 'right_elbow': (29.329, -9.673),
-        'right_wrist': (62.396, 13.951),
-    })
     human.KeyJoints(14.2, {
-        'right_shoulder': (45.086, -19.039, -40.35), 'right_elbow': (31.454, 7.992),
-        'right_wrist': (64.094, 14.744),
+        'right_shoulder': (48.391, -26.024, -62.669), 'right_elbow': (31.518, -26.671),
+        'right_wrist': (62.946, 11.101),
     })
     human.KeyJoints(14.3, {
-        'right_shoulder': (46.821, -17.731, -40.307), 'right_elbow': (35.322, 40.244),
-        'right_wrist': (69.269, 16.585),
+        'right_shoulder': (47.755, -24.906, -63.075), 'right_elbow': (33.757, -8.33),
+        'right_wrist': (64.166, 11.786),
     })
     human.KeyJoints(14.4, {
-        'right_shoulder': (48.957, -18.502, -39.78), 'right_elbow': (39.549, 69.829),
-        'right_wrist': (73.335, 17.733),
+        'right_shoulder': (47.906, -23.343, -63.31), 'right_elbow': (38.641, 24.09),
+        'right_wrist': (67.738, 13.56),
+    })
+    human.KeyJoints(14.5, {
+        'right_shoulder': (49.672, -22.46, -63.071), 'right_elbow': (42.709, 53.335),
+        'right_wrist': (72.598, 15.068),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.5, {
-        'right_shoulder': (49.158, -19.654, -39.487), 'right_elbow': (41.953, 79.523),
-        'right_wrist': (72.742, 17.811),
-    })
     human.KeyJoints(14.6, {
-        'right_shoulder': (48.825, -17.583, -40.046), 'right_elbow': (37.15, 61.183),
-        'right_wrist': (73.719, 17.589),
+        'right_shoulder': (50.51, -22.344, -62.924), 'right_elbow': (43.719, 62.199),
+        'right_wrist': (74.276, 15.308),
     })
     human.KeyJoints(14.7, {
-        'right_shoulder': (46.009, -18.066, -40.374), 'right_elbow': (34.037, 28.763),
-        'right_wrist': (67.121, 15.907),
+        'right_shoulder': (48.888, -22.683, -63.197), 'right_elbow': (41.385, 43.198),
+        'right_wrist': (70.735, 14.624),
     })
     human.KeyJoints(14.8, {
-        'right_shoulder': (44.876, -19.573, -40.278), 'right_elbow': (30.448, -0.483),
-        'right_wrist': (63.227, 14.353),
+        'right_shoulder': (47.634, -23.914, -63.284), 'right_elbow': (36.533, 10.626),
+        'right_wrist': (65.999, 12.754),
+    })
+    human.KeyJoints(14.9, {
+        'right_shoulder': (48.033, -25.512, -62.877), 'right_elbow': (32.495, -18.265),
+        'right_wrist': (63.464, 11.389),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.9, {
-        'right_shoulder': (44.803, -20.177, -40.164), 'right_elbow': (29.367, -9.347),
-        'right_wrist': (62.422, 13.965),
-    })
     human.KeyJoints(15.0, {
-        'right_shoulder': (45.135, -18.945, -40.359), 'right_elbow': (31.664, 9.654),
-        'right_wrist': (64.294, 14.829),
+        'right_shoulder': (48.373, -25.999, -62.679), 'right_elbow': (31.558, -26.291),
+        'right_wrist': (62.966, 11.113),
     })
     human.KeyJoints(15.1, {
-        'right_shoulder': (46.984, -17.69, -40.29), 'right_elbow': (35.526, 42.227),
-        'right_wrist': (69.669, 16.699),
+        'right_shoulder': (47.721, -24.81, -63.102), 'right_elbow': (33.988, -6.644),
+        'right_wrist': (64.303, 11.862),
     })
     human.KeyJoints(15.2, {
-        'right_shoulder': (48.977, -18.653, -39.739), 'right_elbow': (39.899, 71.118),
-        'right_wrist': (73.258, 17.735),
+        'right_shoulder': (47.996, -23.238, -63.308), 'right_elbow': (38.874, 26.066),
+        'right_wrist': (67.962, 13.652),
+    })
+    human.KeyJoints(15.3, {
+        'right_shoulder': (49.782, -22.438, -63.052), 'right_elbow': (42.861, 54.588),
+        'right_wrist': (72.834, 15.112),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.3, {
-        'right_shoulder': (49.148, -19.609, -39.498), 'right_elbow': (41.869, 79.143),
-        'right_wrist': (72.765, 17.805),
-    })
     human.KeyJoints(15.4, {
-        'right_shoulder': (48.643, -17.569, -40.073), 'right_elbow': (37.031, 59.497),
-        'right_wrist': (73.355, 17.531),
+        'right_shoulder': (50.466, -22.348, -62.932), 'right_elbow': (43.673, 61.766),
+        'right_wrist': (74.195, 15.3),
     })
     human.KeyJoints(15.5, {
-        'right_shoulder': (45.891, -18.139, -40.38), 'right_elbow': (33.802, 26.786),
-        'right_wrist': (66.784, 15.789),
+        'right_shoulder': (48.774, -22.729, -63.214), 'right_elbow': (41.148, 41.489),
+        'right_wrist': (70.435, 14.536),
     })
     human.KeyJoints(15.6, {
-        'right_shoulder': (44.859, -19.655, -40.264), 'right_elbow': (30.291, -1.735),
-        'right_wrist': (63.102, 14.295),
+        'right_shoulder': (47.62, -24.007, -63.272), 'right_elbow': (36.23, 8.656),
+        'right_wrist': (65.776, 12.643),
     })
-    # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(15.7, {
-        'right_shoulder': (44.804, -20.146, -40.171), 'right_elbow': (29.418, -8.914),
-        'right_wrist': (62.457, 13.982),
-    })
-    human.KeyJoints(15.8, {
-        'right_shoulder': (45.19, -18.851, -40.368), 'right_elbow': (31.881, 11.363),
-        'right_wrist': (64.508, 14.919),
-    })
-    human.KeyJoints(15.9, {
-        'right_shoulder': (47.151, -17.654, -40.271), 'right_elbow': (35.723, 44.197),
-        'right_wrist': (70.073, 16.809),
-    })
-    human.KeyJoints(16.0, {
-        'right_shoulder': (48.998, -18.797, -39.702), 'right_elbow': (40.222, 72.334),
-        'right_wrist': (73.184, 17.738),
+        'right_shoulder': (48.08, -25.582, -62.85), 'right_elbow': (32.341, -19.481),
+        'right_wrist': (63.379, 11.343),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=16.071309, duration=0.072)
-    human.KeyJoints(16.1, {
-        'right_shoulder': (49.171, -19.711, -39.474), 'right_elbow': (42.057, 80.0),
-        'right_wrist': (72.712, 17.82),
+    human.Grasp('right_hand', 'open', start=15.771309, duration=0.072)
+    human.KeyJoints(15.8, {
+        'right_shoulder': (48.414, -26.055, -62.656), 'right_elbow': (31.468, -27.147),
+        'right_wrist': (62.921, 11.087),
     })
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=16.143309, duration=0.384161)
-    human.KeyJoints(16.2, {
-        'neck': (31.488, -22.448, 11.082), 'right_shoulder': (48.393, -20.58, -39.399),
-        'right_elbow': (38.378, 80.0), 'right_wrist': (69.933, 16.677),
-    })
-    human.KeyJoints(16.3, {
-        'head': (14.962, 11.19), 'right_shoulder': (47.021, -22.113, -39.266),
-        'right_elbow': (31.89, 80.0), 'right_wrist': (65.032, 14.662),
-    })
-    human.KeyJoints(16.4, {
-        'right_shoulder': (45.741, -23.544, -39.143), 'right_elbow': (25.835, 80.0),
-        'right_wrist': (60.459, 12.781),
-    })
+    human.LookAt((10.0, 25.0, 95.0), start=15.843309, duration=0.393628)
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(16.6, {'neck': (31.57, -22.526, 11.241)})
-    human.KeyJoints(16.8, {'right_elbow': (25.802, 79.979)})
-    human.KeyJoints(17.7, {'head': (15.0, 11.25)})
-    human.KeyJoints(19.4, {
-        'spine_lumbar': (54.353, -19.028, 4.732), 'spine_thoracic': (-13.286, 9.776, -10.817),
-        'neck': (31.57, -22.526, 11.241), 'head': (15.0, 11.25), 'right_clavicle': (-9.147, 14.238),
-        'right_shoulder': (45.741, -23.544, -39.143), 'right_elbow': (25.835, 80.0),
-        'right_wrist': (60.459, 12.781), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (-35.787, 42.242, -75.308), 'left_elbow': (98.344, 31.175),
-        'left_wrist': (-66.502, 8.144),
+    human.KeyJoints(19.1, {
+        'spine_lumbar': (54.161, -18.196, 6.933), 'spine_thoracic': (-13.738, 9.266, -9.106),
+        'neck': (32.683, -22.906, 8.146), 'head': (15.0, 11.25), 'right_clavicle': (-9.366, 13.937),
+        'right_shoulder': (48.433, -26.008, -62.661), 'right_elbow': (31.437, -27.147),
+        'right_wrist': (62.883, 11.08), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (-34.186, 43.016, -75.59), 'left_elbow': (98.397, 31.103),
+        'left_wrist': (-66.811, 8.741),
     })
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: posture on root
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: gaze on head
-    human.KeyJoints(19.5, {
-        'spine_lumbar': (44.11, -15.529, 3.823), 'spine_thoracic': (-9.899, 7.45, -8.739),
-        'neck': (24.276, -17.322, 8.644), 'head': (11.535, 8.651),
-        'right_clavicle': (-7.39, 11.439), 'right_shoulder': (38.803, -17.484, -35.354),
-        'right_elbow': (26.689, 67.767), 'right_wrist': (47.811, 9.994),
-        'left_clavicle': (-8.079, 12.051), 'left_shoulder': (-27.037, 35.608, -64.541),
-        'left_elbow': (85.869, 28.429), 'left_wrist': (-53.441, 6.585),
+    human.KeyJoints(19.2, {
+        'spine_lumbar': (43.963, -14.883, 5.613), 'spine_thoracic': (-10.243, 7.112, -7.372),
+        'neck': (25.29, -17.725, 6.346), 'head': (11.607, 8.705),
+        'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.907, -19.399, -54.317),
+        'right_elbow': (31.503, -18.43), 'right_wrist': (50.292, 8.825),
+        'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.823, 36.257, -64.814),
+        'left_elbow': (86.011, 28.399), 'left_wrist': (-53.798, 7.087),
     })
-    human.KeyJoints(19.6, {
-        'spine_lumbar': (23.462, -7.594, 1.803), 'spine_thoracic': (-2.874, 2.76, -4.122),
-        'neck': (9.391, -6.701, 3.344), 'head': (4.462, 3.346), 'right_clavicle': (-3.486, 5.37),
-        'right_shoulder': (22.989, -4.274, -27.172), 'right_elbow': (30.537, 40.927),
-        'right_wrist': (22.665, 4.67), 'left_clavicle': (-3.811, 5.658),
-        'left_shoulder': (-8.191, 20.826, -41.006), 'left_elbow': (58.513, 22.456),
-        'left_wrist': (-25.111, 3.089),
+    human.KeyJoints(19.3, {
+        'spine_lumbar': (23.407, -7.332, 2.671), 'spine_thoracic': (-3.002, 2.66, -3.508),
+        'neck': (10.073, -7.06, 2.548), 'head': (4.623, 3.467), 'right_clavicle': (-3.608, 5.315),
+        'right_shoulder': (24.103, -5.291, -36.22), 'right_elbow': (32.851, 0.319),
+        'right_wrist': (23.849, 4.151), 'left_clavicle': (-3.852, 5.72),
+        'left_shoulder': (-7.744, 21.243, -41.321), 'left_elbow': (58.763, 22.485),
+        'left_wrist': (-25.492, 3.346),
     })
-    human.KeyRoot(19.7, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.7, {
-        'spine_lumbar': (11.206, -0.248, 0.18), 'spine_thoracic': (1.882, -0.024, -0.41),
-        'neck': (0.003, -0.002, 0.001), 'head': (0.002, 0.001), 'right_clavicle': (-0.347, 0.493),
-        'right_shoulder': (10.131, 6.329, -20.605), 'right_elbow': (33.816, 19.366),
-        'right_wrist': (2.126, 0.397), 'left_clavicle': (-0.379, 0.52),
-        'left_shoulder': (7.079, 8.92, -21.985), 'left_elbow': (36.462, 17.672),
-        'left_wrist': (-2.315, 0.271), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+    human.KeyRoot(19.4, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.4, {
+        'spine_lumbar': (11.207, -0.247, 0.281), 'spine_thoracic': (1.883, 0.015, -0.369),
+        'neck': (0.099, -0.07, 0.056), 'head': (0.046, 0.034), 'right_clavicle': (-0.38, 0.519),
+        'right_shoulder': (10.298, 6.189, -21.544), 'right_elbow': (34.088, 15.539),
+        'right_wrist': (2.364, 0.414), 'left_clavicle': (-0.405, 0.559),
+        'left_shoulder': (7.055, 9.024, -22.131), 'left_elbow': (36.569, 17.705),
+        'left_wrist': (-2.49, 0.303), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
-    human.KeyRoot(19.8, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.8, {
-        'spine_lumbar': (11.51, 9.923, 0.0), 'spine_thoracic': (1.86, 1.957, 0.0),
-        'neck': (-0.102, 0.073, -0.036), 'right_clavicle': (0.0, -0.038),
-        'right_shoulder': (8.668, 7.511, -19.905), 'right_elbow': (34.223, 17.019),
-        'right_wrist': (-0.135, -0.064), 'left_clavicle': (0.0, -0.041),
-        'left_shoulder': (8.774, 7.576, -19.897), 'left_elbow': (34.05, 17.151),
-        'left_wrist': (0.171, -0.04), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
+    human.KeyRoot(19.5, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.5, {
+        'spine_lumbar': (11.511, 9.921, 0.0), 'spine_thoracic': (1.861, 1.989, 0.0),
+        'neck': (-0.103, 0.072, 0.0), 'head': (-0.047, -0.035), 'right_clavicle': (0.0, -0.037),
+        'right_shoulder': (8.637, 7.544, -19.854), 'right_elbow': (34.275, 17.307),
+        'right_wrist': (-0.148, -0.019), 'left_clavicle': (0.0, -0.04),
+        'left_shoulder': (8.798, 7.563, -19.89), 'left_elbow': (33.995, 17.152),
+        'left_wrist': (0.177, -0.052), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
         'left_hip': (30.631, 0.0, 0.0), 'left_knee': (132.66,),
     })
-    human.KeyRoot(19.9, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
-    human.KeyJoints(19.9, {
-        'spine_lumbar': (-6.192, 20.0, 0.0), 'spine_thoracic': (-3.157, 9.769, 0.0),
-        'left_elbow': (34.185, 17.159), 'right_hip': (30.975, -0.002, -0.001),
+    human.KeyRoot(19.6, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.6, {
+        'spine_lumbar': (-6.191, 20.0, 0.0), 'spine_thoracic': (-3.156, 9.794, 0.0),
+        'left_elbow': (34.137, 17.16), 'right_hip': (30.975, -0.002, -0.001),
         'right_knee': (133.004,), 'right_ankle': (15.162, 0.004),
         'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,), 'left_ankle': (15.162, -0.004),
         'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(20.0, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.0, {
-        'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.974, 9.982, 0.0),
-        'right_shoulder': (8.665, 7.526, -19.95), 'right_elbow': (34.21, 17.094),
-        'right_wrist': (-0.071, -0.054), 'left_shoulder': (8.707, 7.534, -19.939),
-        'left_elbow': (34.197, 17.168), 'left_wrist': (0.097, -0.021),
+    human.KeyRoot(19.7, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.7, {
+        'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.973, 10.0, 0.0),
+        'right_shoulder': (8.646, 7.543, -19.922), 'right_elbow': (34.243, 17.255),
+        'right_wrist': (-0.078, -0.028), 'left_shoulder': (8.722, 7.526, -19.935),
+        'left_elbow': (34.164, 17.168), 'left_wrist': (0.1, -0.029),
         'right_hip': (29.119, -0.468, -0.191), 'right_knee': (131.151,),
         'right_ankle': (15.087, 0.295), 'left_hip': (28.49, -2.112, 2.219), 'left_knee': (132.068,),
         'left_ankle': (17.195, 2.945), 'left_toes': (85.798,),
     })
-    human.KeyRoot(20.1, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.1, {
-        'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 9.989, 0.0),
-        'right_shoulder': (8.436, 7.035, -19.833), 'right_elbow': (35.901, 17.132),
-        'right_wrist': (-0.104, 0.352), 'left_shoulder': (7.37, 7.443, -20.104),
-        'left_elbow': (36.994, 17.176), 'left_wrist': (-0.188, 0.597),
+    human.KeyRoot(19.8, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.8, {
+        'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
+        'right_shoulder': (8.425, 7.046, -19.816), 'right_elbow': (35.92, 17.228),
+        'right_wrist': (-0.108, 0.367), 'left_shoulder': (7.378, 7.439, -20.102),
+        'left_elbow': (36.975, 17.176), 'left_wrist': (-0.186, 0.593),
         'right_hip': (27.494, -0.514, -0.19), 'right_knee': (129.498,),
         'right_ankle': (15.135, 0.289), 'left_hip': (32.614, -4.47, 3.326), 'left_knee': (134.97,),
         'left_ankle': (-0.061, 5.498), 'right_toes': (86.572,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(20.2, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.2, {
-        'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 9.996, 0.0),
-        'right_shoulder': (8.057, 6.089, -19.579), 'right_elbow': (39.1, 17.17),
-        'right_wrist': (-0.192, 1.125), 'left_shoulder': (4.973, 7.356, -20.417),
+    human.KeyRoot(19.9, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
+    human.KeyJoints(19.9, {
+        'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 10.0, 0.0),
+        'right_shoulder': (8.057, 6.09, -19.572), 'right_elbow': (39.1, 17.202),
+        'right_wrist': (-0.192, 1.128), 'left_shoulder': (4.972, 7.356, -20.417),
         'left_elbow': (42.001, 17.184), 'left_wrist': (-0.692, 1.725),
         'right_hip': (29.291, -0.258, -0.105), 'right_knee': (131.288,),
         'right_ankle': (15.11, 0.184), 'left_hip': (41.403, -17.888, 7.84),
         'left_ankle': (-30.511, 18.414), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(20.3, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.3, {
+    human.KeyRoot(20.0, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.0, {
         'spine_lumbar': (-25.476, 20.0, 0.0), 'spine_thoracic': (-10.903, 10.0, 0.0),
         'right_shoulder': (8.096, 5.866, -19.508), 'right_elbow': (39.802, 17.188),
         'right_wrist': (-0.194, 1.298), 'left_shoulder': (4.397, 7.367, -20.51),
@@ -962,16 +932,16 @@ def replace_fuel_filter_cad():
         'left_hip': (57.423, -20.119, 29.089), 'left_knee': (135.0,),
         'left_ankle': (-48.832, 8.202), 'left_toes': (70.209,),
     })
-    human.KeyRoot(20.4, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.4, {
+    human.KeyRoot(20.1, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.1, {
         'spine_lumbar': (-23.91, 20.0, 0.0), 'spine_thoracic': (-14.842, 10.0, 0.0),
         'right_shoulder': (8.276, 6.702, -19.771), 'left_elbow': (38.809, 17.189),
         'right_hip': (28.271, -0.289, -0.112), 'right_knee': (130.289,),
         'left_hip': (86.119, -23.232, 26.697), 'left_knee': (134.934,),
         'left_ankle': (-45.269, 13.893), 'left_toes': (55.701,),
     })
-    human.KeyRoot(20.5, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.5, {
+    human.KeyRoot(20.2, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.2, {
         'spine_lumbar': (-16.434, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
@@ -980,122 +950,122 @@ def replace_fuel_filter_cad():
         'right_ankle': (15.053, 0.198), 'left_hip': (106.363, -23.561, 21.269),
         'left_knee': (133.197,), 'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
     })
-    human.KeyRoot(20.6, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.6, {
+    human.KeyRoot(20.3, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.3, {
         'spine_lumbar': (-15.119, 20.0, 0.0), 'right_hip': (32.639, -0.2, -0.093),
         'right_knee': (134.651,), 'left_hip': (119.967, -25.0, 10.628), 'left_knee': (134.997,),
         'left_ankle': (-30.514, 21.747), 'left_toes': (33.665,),
     })
-    human.KeyRoot(20.7, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.7, {
+    human.KeyRoot(20.4, (1.902, 42.771, 40.033), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.4, {
         'spine_lumbar': (-25.621, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'neck': (0.0, 0.0, 0.0), 'right_hip': (28.698, -0.214, -0.085), 'right_knee': (130.717,),
         'right_ankle': (15.049, 0.153), 'left_hip': (106.414, -25.0, 14.189),
         'left_knee': (133.37,), 'left_ankle': (-18.019, 29.277), 'right_toes': (86.836,),
         'left_toes': (40.113,),
     })
-    human.KeyRoot(20.8, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.8, {
+    human.KeyRoot(20.5, (1.644, 42.949, 40.338), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.5, {
         'spine_lumbar': (-29.633, 20.0, 0.0), 'spine_thoracic': (-7.595, 10.0, 0.0),
         'right_hip': (28.189, -0.481, -0.185), 'right_knee': (130.238,),
         'right_ankle': (15.056, 0.313), 'left_hip': (99.669, -13.239, 8.826),
         'left_knee': (127.309,), 'left_ankle': (-16.285, 16.935), 'right_toes': (86.696,),
         'left_toes': (42.118,),
     })
-    human.KeyRoot(20.9, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
-    human.KeyJoints(20.9, {
+    human.KeyRoot(20.6, (2.336, 41.533, 37.955), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.6, {
         'spine_lumbar': (-6.473, 8.302, 0.0), 'spine_thoracic': (-4.013, 3.384, 0.0),
         'right_hip': (31.962, -0.038, -0.017), 'right_knee': (133.967,),
         'right_ankle': (15.046, 0.029), 'left_hip': (96.735, -0.177, 0.211),
         'left_knee': (127.733,), 'left_ankle': (9.607, 0.397), 'right_toes': (86.913,),
         'left_toes': (21.317,),
     })
-    human.KeyRoot(21.0, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.0, {
+    human.KeyRoot(20.7, (2.442, 41.238, 37.42), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.7, {
         'spine_lumbar': (1.049, 0.0, 0.0), 'spine_thoracic': (0.163, 0.0, 0.0),
         'right_hip': (32.725, 0.0, 0.0), 'right_knee': (134.767,), 'right_ankle': (15.337, 0.0),
         'left_hip': (94.048, 0.0, 0.0), 'left_knee': (127.0,), 'left_ankle': (20.0, 0.0),
         'right_toes': (86.575,), 'left_toes': (12.93,),
     })
-    human.KeyRoot(21.1, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.1, {
+    human.KeyRoot(20.8, (2.995, 45.24, 33.614), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.8, {
         'spine_lumbar': (11.398, 0.087, 0.0), 'spine_thoracic': (1.9, 0.015, 0.0),
         'right_hip': (35.735, -0.023, 0.058), 'right_knee': (131.627,),
         'right_ankle': (20.0, 0.063), 'left_hip': (89.746, 0.006, -0.043), 'left_knee': (117.9,),
         'left_ankle': (19.999, -0.043), 'right_toes': (75.79,), 'left_toes': (8.148,),
     })
-    human.KeyRoot(21.2, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.2, {
+    human.KeyRoot(20.9, (4.02, 63.336, 32.975), (-7.907, 0.0, 0.0))
+    human.KeyJoints(20.9, {
         'spine_lumbar': (14.357, 2.873, 0.0), 'spine_thoracic': (2.375, 0.515, 0.0),
         'right_hip': (27.113, 0.156, 1.227), 'right_knee': (102.784,), 'right_ankle': (20.0, 1.237),
         'left_hip': (65.605, -0.374, -0.92), 'left_knee': (87.914,), 'left_ankle': (20.0, -0.994),
         'right_toes': (55.625,), 'left_toes': (2.34,),
     })
-    human.KeyRoot(21.3, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.3, {
+    human.KeyRoot(21.0, (5.633, 75.257, 39.473), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.0, {
         'spine_lumbar': (-0.927, 9.644, 0.0), 'spine_thoracic': (-0.288, 1.74, 0.0),
         'right_hip': (9.259, 1.86, 2.393), 'right_knee': (72.145,), 'right_ankle': (20.0, 3.033),
         'left_hip': (46.408, -1.99, -2.09), 'left_knee': (66.387,), 'left_ankle': (19.999, -2.886),
         'right_toes': (42.883,), 'left_toes': (0.027,),
     })
-    human.KeyRoot(21.4, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.4, {
+    human.KeyRoot(21.1, (7.754, 83.497, 37.875), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.1, {
         'spine_lumbar': (7.984, 14.755, 0.0), 'spine_thoracic': (1.059, 2.641, 0.0),
         'right_hip': (-2.9, 3.588, 1.523), 'right_knee': (42.98,), 'right_ankle': (20.0, 3.899),
         'left_hip': (33.685, -3.312, -2.205), 'left_knee': (40.45,), 'left_ankle': (6.829, -3.979),
         'right_toes': (25.897,),
     })
-    human.KeyRoot(21.5, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.5, {
+    human.KeyRoot(21.2, (8.75, 85.833, 35.724), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.2, {
         'spine_lumbar': (21.829, 16.552, 0.0), 'spine_thoracic': (-4.174, 3.104, 0.0),
         'right_hip': (-6.868, 4.15, 0.957), 'right_knee': (31.478,), 'right_ankle': (18.509, 4.258),
         'left_hip': (28.254, -3.842, -2.062), 'left_knee': (26.967,), 'left_ankle': (-1.218, -4.36),
         'right_toes': (19.831,),
     })
-    human.KeyRoot(21.6, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.6, {
+    human.KeyRoot(21.3, (9.831, 86.036, 50.288), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.3, {
         'spine_lumbar': (50.162, -0.761, 0.0), 'spine_thoracic': (3.4, -0.057, 0.0),
         'right_hip': (-14.98, 5.689, 3.64), 'right_knee': (27.272,), 'right_ankle': (-5.256, 6.746),
         'left_hip': (23.117, -6.034, -2.57), 'left_knee': (36.859,), 'left_ankle': (13.881, -6.558),
         'right_toes': (47.611,),
     })
-    human.KeyRoot(21.7, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.7, {
+    human.KeyRoot(21.4, (10.067, 89.243, 53.24), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.4, {
         'spine_lumbar': (47.857, -2.919, 0.0), 'spine_thoracic': (7.438, -0.433, 0.0),
         'right_hip': (-14.91, 5.676, 5.662), 'right_knee': (27.02,),
         'right_ankle': (-17.847, 7.981), 'left_hip': (12.589, -6.581, -1.466),
         'left_knee': (19.87,), 'left_ankle': (7.365, -6.742), 'right_toes': (59.998,),
     })
-    human.KeyRoot(21.8, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.8, {
+    human.KeyRoot(21.5, (9.661, 90.258, 61.885), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.5, {
         'spine_lumbar': (18.591, -1.1, 0.0), 'spine_thoracic': (6.071, -0.19, 0.0),
         'right_hip': (-14.907, 6.444, 4.463), 'right_knee': (28.859,),
         'right_ankle': (-6.571, 7.339), 'left_hip': (0.038, -7.194, -0.005), 'left_knee': (6.455,),
         'left_ankle': (6.418, -7.194), 'right_toes': (49.126,),
     })
-    human.KeyRoot(21.9, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
-    human.KeyJoints(21.9, {
+    human.KeyRoot(21.6, (9.008, 89.809, 67.337), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.6, {
         'spine_lumbar': (2.79, -1.045, 0.0), 'spine_thoracic': (0.496, -0.19, 0.0),
         'right_hip': (-2.004, 7.135, 2.848), 'right_knee': (38.171,),
         'right_ankle': (16.568, 7.702), 'left_hip': (-4.361, -7.282, 0.554), 'left_knee': (5.203,),
         'left_ankle': (9.528, -7.303), 'right_toes': (23.818,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(22.0, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.0, {
+    human.KeyRoot(21.7, (8.05, 90.12, 66.303), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.7, {
         'spine_lumbar': (2.697, -4.136, 0.0), 'spine_thoracic': (0.433, -0.746, 0.0),
         'right_hip': (3.502, 6.661, 0.71), 'right_knee': (23.67,), 'right_ankle': (17.784, 6.966),
         'left_hip': (-4.019, -6.514, 0.453), 'left_knee': (4.59,), 'left_ankle': (8.391, -6.476),
         'right_toes': (2.803,), 'left_toes': (0.139,),
     })
-    human.KeyRoot(22.1, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.1, {
+    human.KeyRoot(21.8, (2.391, 90.959, 58.417), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.8, {
         'spine_lumbar': (9.419, -9.439, 0.0), 'spine_thoracic': (1.543, -1.699, 0.0),
         'right_hip': (1.814, 1.934, 0.061), 'right_knee': (6.69,), 'right_ankle': (4.877, 1.935),
         'left_hip': (1.814, -1.934, -0.061), 'left_knee': (6.69,), 'left_ankle': (4.877, -1.935),
         'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(22.167309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
-    human.KeyJoints(22.167309, {
+    human.KeyRoot(21.867309, (0.0, 91.087, 55.0), (-7.907, 0.0, 0.0))
+    human.KeyJoints(21.867309, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

@@ -610,6 +610,19 @@ class Measured(NamedTuple):
         feet, hands = np.ascontiguousarray(m.feet), np.ascontiguousarray(m.hands)
         return m._replace(feet=feet, hands=hands, pts=support_layout(m.pts))
 
+    def touching(self) -> BoolArray:
+        """(N, 2) whether the r and l foot touch the ground (any of its sole points)."""
+        return self.contact.reshape(len(self.contact), 2, -1).any(axis=2)
+
+    def feet_goals(self) -> dict[str, tuple[FloatArray, FloatArray, BoolArray]]:
+        """Each foot where it was measured: position, rotation and whether it touches, the
+        ``feet`` that ``restore_contacts`` keeps."""
+        touching = self.touching()
+        return {
+            name: (self.feet[:, k], self.feet_rotation[:, k], touching[:, k])
+            for k, name in enumerate(FEET_SITES)
+        }
+
 
 def support_layout(pts: FloatArray) -> FloatArray:
     """``pts`` (n, 22, 2) copied into the memory layout ``mtlc.metrics.support`` gives (the
@@ -758,7 +771,7 @@ def balance_frames(
     hulls = grouped_hull(pts, ok)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(m_r.lowest - 1e-4, ir.ground - GROUND_SLACK)
-    touching = m_r.contact.reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
+    touching = m_r.touching()  # (B, 2): r, l
     # a foot's orientation target is a view of the rows' pose, which the rounds below update
     # in place: a later round restores a foot to the orientation the last one left it in
     feet = {
@@ -903,11 +916,7 @@ def balance_frames(
     # the frames the blend reaches, as measured in their original pose
     m_s = measured.take(span)
     pts_s, ok_s = m_s.pts, m_s.ok
-    feet_b = {
-        name: (m_s.feet[:, k], m_s.feet_rotation[:, k],
-               m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
-        for k, name in enumerate(FEET_SITES)
-    }  # fmt: skip
+    feet_b = m_s.feet_goals()
     hands_b = {h: (codes[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     hull_b = grouped_hull(pts_s, ok_s)
@@ -1140,11 +1149,7 @@ def limit_raw(
     qs = np.clip(q_raw[cut] + step[:, :d], skel.lower, skel.upper)
     rs = root_raw[cut] + step[:, d:]
     m = measured.take(f)
-    feet = {
-        name: (m.feet[:, k], m.feet_rotation[:, k],
-               m.contact.reshape(f.size, 2, -1).any(axis=2)[:, k])
-        for k, name in enumerate(FEET_SITES)
-    }  # fmt: skip
+    feet = m.feet_goals()
     hands = {h: (pins[h][f], m.hands[:, k]) for k, h in enumerate(HANDS)}
     qs, rs, ws, ps = restore_contacts_posed(
         ir, qs, rs, frames.root_rotation[f], feet, hands, with_axes=False

@@ -59,6 +59,21 @@ def test_reach_time_from_hand_travel(tmp_path: Path) -> None:
     assert ta[1] == to[0]
 
 
+def test_a_reach_past_any_arm_is_timed_as_the_longest_reach(tmp_path: Path) -> None:
+    """A site 90 m off is out of reach (the motion passes say so): its reach takes the time of
+    the farthest one-reach hand travel, not 72 s of a hand moving towards it."""
+    sites = "    site away at (0, 75, 9000) cm\n    site edge at (-20, 75, 220) cm\n"
+    t = expand(tmp_path, "    reach(right, away)\n    reach(left, edge)\n", sites=sites)
+    away, edge = t.primitives
+    assert away.params["travel"] == pytest.approx(90.0, abs=0.01)
+    cap = mtm.reach_tmu("B", 2.5) * TMU
+    assert away.duration == pytest.approx(cap)
+    assert away.duration < 3.0
+    # below the cap the MTM-1 rule stands: 2.24 m (left rest to the edge) is timed as itself
+    assert edge.params["travel"] < 2.5
+    assert edge.duration == pytest.approx(mtm.reach_tmu("B", edge.params["travel"]) * TMU)
+
+
 def test_sequence_parallel_and_both_hands(tmp_path: Path) -> None:
     body = (
         "    parallel {\n"

@@ -36,6 +36,11 @@ DEFAULT_BUDGET = 100_000
 MAX_NESTING = 150  # blocks and calls inside each other while expanding
 DEFAULT_APPROACH_M = 0.08
 TO_SHARE = (0.2, 0.5)  # the contact (TO) phase's share of a goal's time: at least, at most
+# m: the farthest a hand travels in one reach or move without a step (P99 male: floor beside the
+# foot to overhead, or across the body with the trunk leaning, is under 2.3 m). A goal farther
+# than this is out of reach (MT0501 from the motion passes); timing its MTM-1 reach by the whole
+# distance made a 90 m "reach" a 72 s motion to compile and lint, for a hand that cannot get there.
+MAX_HAND_TRAVEL_M = 2.5
 HAND_REST = {"left_hand": (0.2, 0.75, 0.0), "right_hand": (-0.2, 0.75, 0.0)}  # from the root
 HANDS = {"left": ("left_hand",), "right": ("right_hand",), "both": ("left_hand", "right_hand")}
 # s: a hand that let go and has nothing to do for this long lets its arm down (passes.rest), so
@@ -658,7 +663,7 @@ class Expander:
                 # reach is timed from there, not from the site it let go of
                 self.hand_pos[h] = None
         distance = max(_dist(self._hand(h), target) for h in hands)
-        d = self.duration(timing, _REACH, stmt, env, distance)
+        d = self.duration(timing, _REACH, stmt, env, min(distance, MAX_HAND_TRAVEL_M))
         if approach == 0:
             share = 0.0  # no approach point: the whole goal is target approaching
         elif distance > 0:

@@ -265,8 +265,8 @@ LEFT = {
     "into the bench (36), 3.3 into the carried panel (36), right hand 3.4 (31)",
     ("remove_access_panel_cad", "gb10000_1988:male:95"): "right hand 23.7 mm through the panel "
     "at the first bolt, 9.63 s (31), the wrench 10.4-11.5 mm (31)",
-    ("replace_fuel_filter_cad", "gb10000_1988:female:5"): "left hand 16.7 mm in the bowl the "
-    "right hand takes away, 8.13 s (45-46: in it at its goal already; 49.8 before the withdraw "
+    ("replace_fuel_filter_cad", "gb10000_1988:female:5"): "left hand 23.2 mm in the bowl the "
+    "right hand takes away, 8.17 s (45-46: in it at its goal already; 49.8 before the withdraw "
     "pass), head 12.0 and 6.3 mm into the left wall (48-49, 51: no pass keeps the trunk and "
     "head out)",
     ("replace_fuel_filter_cad", "gb10000_1988:male:95"): "left hand 26.9 mm into the right "

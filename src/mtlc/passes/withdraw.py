@@ -24,7 +24,8 @@ from mtlc.passes.detour import solve_via
 from mtlc.passes.profile import minimum_jerk
 from mtlc.passes.state import PoseState
 
-WITHDRAW_TIME = 0.25  # s: back out along the approach (the way in, a TO, took 0.12-0.2 s)
+WITHDRAW_TIME = 0.2  # s: the way out (the way in, a TO, took 0.12-0.2 s)
+WITHDRAW_DELAY = 0.05  # s after the release starts: the goal's last frames keep the hand still
 WITHDRAW_DISTANCE = 0.08  # m: a goal's usual approach distance (stdlib's 8 cm)
 WITHDRAW_KEYS = 7  # keyframes along the way (the interpolation between two keys is no profile)
 EPS = 1e-9
@@ -78,7 +79,7 @@ def withdrawals(ir: MotionIR, side: str) -> list[tuple[Segment, Segment, Segment
             continue
         if away.goal.site == site or not closed_at(ir, other, away.start):
             continue
-        if nxt is not None and nxt.start < g.start + WITHDRAW_TIME - EPS:
+        if nxt is not None and nxt.start < g.start + WITHDRAW_DELAY + WITHDRAW_TIME - EPS:
             continue  # no time: the next reach takes the hand away itself
         if done[-1].goal.position is None or away.goal.position is None:
             continue
@@ -96,7 +97,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         names = arm_dofs(ir, side)
         idx = [skel.dof_index(n) for n in names]
         for release, reach, away, nxt in withdrawals(ir, side):
-            t0, t1 = release.start, release.start + WITHDRAW_TIME
+            t0 = release.start + WITHDRAW_DELAY
+            t1 = t0 + WITHDRAW_TIME
             q0 = state.q_at(t0)
             start = q0[idx]
             offset = withdraw_offset(reach, away)

@@ -257,7 +257,7 @@ def outdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("penetration")
 
 
-# what is left (main 3aa2bc5 and the withdraw pass): "part mm into model at s (task lines)"
+# what is left (main 3aa2bc5; each "part mm into model at s (task line)", the deepest of each)
 LEFT = {
     ("remove_access_panel_cad", "gb10000_1988:female:5"): "right hand 19.0 mm through the panel "
     "at the first bolt, 9.47 s (31: the hand's fingers point into the panel while the wrench "
@@ -265,13 +265,11 @@ LEFT = {
     "into the bench (36), 3.3 into the carried panel (36), right hand 3.4 (31)",
     ("remove_access_panel_cad", "gb10000_1988:male:95"): "right hand 23.7 mm through the panel "
     "at the first bolt, 9.63 s (31), the wrench 10.4-11.5 mm (31)",
-    ("replace_fuel_filter_cad", "gb10000_1988:female:5"): "left hand 23.2 mm in the bowl the "
-    "right hand takes away, 8.17 s (45-46: in it at its goal already; 49.8 before the withdraw "
-    "pass), head 12.0 and 6.3 mm into the left wall (48-49, 51: no pass keeps the trunk and "
-    "head out)",
+    ("replace_fuel_filter_cad", "gb10000_1988:female:5"): "left hand 49.8 mm in the bowl the "
+    "right hand takes away, 8.20 s (46: the released hand stays where the bowl was), head "
+    "12.2 and 6.3 mm into the left wall (48-49, 51: no pass keeps the trunk and head out)",
     ("replace_fuel_filter_cad", "gb10000_1988:male:95"): "left hand 26.9 mm into the right "
-    "wall at 12.20 s (51: the free left arm the screw reach's trunk turn carries), head 14.5 mm "
-    "into the left wall (49)",
+    "wall at 12.13 s (51), head 14.5 mm into the left wall (49)",
 }
 
 

@@ -35,7 +35,6 @@ from mtlc.passes import (
     tool,
     upright,
     verify,
-    withdraw,
 )
 from mtlc.passes.context import MotionOptions, PassContext
 from mtlc.passes.lower import lower
@@ -55,7 +54,6 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
-    ("withdraw", withdraw.run),  # a hand let go where the other grips backs off (models only)
     ("upright", upright.run),  # the trunk a reach leaned comes back up when nothing needs it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("detour", detour.run),  # a reach's path bent around the scene's models by a via key

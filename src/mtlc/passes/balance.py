@@ -151,13 +151,7 @@ def pin_windows(
             grips[seg.track].append(seg)
     out = {}
     for hand, track in HANDS.items():
-        # a withdrawal (passes/withdraw.py) does not end the pin: the hand is held where its
-        # frames put it, on its way out as at the site (ended there, the right hand carrying
-        # the fuel filter's bowl away went from LDLJ -6.7 to -9.9, female P50)
-        segs = sorted(
-            (s for s in by_track[track] if not s.goal.params.get("withdraw")),
-            key=lambda s: s.start,
-        )
+        segs = sorted(by_track[track], key=lambda s: s.start)
         hand_grips = sorted(grips[hand], key=lambda s: s.start)
         starts = [s.start for s in segs]
         lo: list[float] = []

@@ -69,6 +69,16 @@ class Timeline:
     primitives: list[Primitive] = field(default_factory=list)
     # the scene's models and solids, placed (mtlc.geometry.model.SceneModel)
     models: list[Any] = field(default_factory=list)
+    # where the `budget` statement is (MT0404 is reported there)
+    budget_span: Span | None = None
+    # the indices in ``primitives`` of the walks timed by MTM-1 paces: the ones that get turn
+    # time and the time their steps need (``semantics.schedule``)
+    mtm_walks: tuple[int, ...] = ()
+    # whether those walks are timed yet: the expander's timeline is not (it is the same for
+    # every manikin), ``schedule.for_manikin`` returns a copy timed for one manikin's body
+    timed: bool = False
+    # a timed timeline's untimed source, which times it again for another manikin
+    expanded: Timeline | None = field(default=None, compare=False, repr=False)
 
     @property
     def duration(self) -> float:

@@ -32,7 +32,7 @@ from mtlc.report import analyse_task
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 
 ROUNDS = Path("tests/lint/data/rounds.mtask")  # walks and turns of many lengths
-FILES = sorted(Path("examples").glob("*.mtask")) + [ROUNDS]
+FILES = [*sorted(Path("examples").glob("*.mtask")), ROUNDS]
 # the extremes of the table and one between, none of them every file's own manikin
 SWEPT = parse_selection("gb10000_1988:female:1,gb10000_1988:female:50,gb10000_1988:male:99")
 NO_RULES = LintConfig(select=frozenset(c for c in CODES if not c.startswith("MT06")))
@@ -106,9 +106,10 @@ def test_report_measures_each_manikin_on_compiles_timeline(
     patch_motion(monkeypatch, seen, run=False)
     task = analyse_task(timeline, SWEPT, jobs=1)
     assert [m.method for m in task.manikins] == ["failed"] * len(SWEPT)
-    for got, spec in zip(seen, SWEPT, strict=True):
+    for got, spec, row in zip(seen, SWEPT, task.manikins, strict=True):
         (expected,) = compile_timelines(path, spec)
         same_timeline(got, expected)
+        assert row.time == expected.duration  # the row's predicted time is this manikin's
 
 
 def test_the_sweep_times_walks_for_each_body() -> None:

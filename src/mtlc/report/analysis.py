@@ -74,6 +74,9 @@ class ManikinResult:
     seen: dict[GoalRef, float] = field(default_factory=dict)
     opening: dict[GoalRef, tuple[float, float, str]] = field(default_factory=dict)
     error: str | None = None
+    # s, the task's predicted time for this manikin (its walks' steps take its body's time);
+    # None when it is past the motion budget
+    time: float | None = None
 
     @property
     def label(self) -> str:
@@ -135,6 +138,7 @@ def analyse_tasks(
                 timed.append(one)
     shared = (tuple(timed), options or MotionOptions())
     outcomes = iter(executor.run(measure_one, shared, list(range(len(timed))), jobs))
+    durations = iter(t.duration for t in timed)
     out = []
     for i, timeline in enumerate(timelines):
         ordered = []
@@ -146,6 +150,8 @@ def analyse_tasks(
                 failed = ManikinResult(spec, stature(spec) / 1000.0, FAILED)
                 failed.error = outcome.message
                 ordered.append(failed)
+            if (i, k) not in over:
+                ordered[-1].time = next(durations)
         # in the order of the motion (the first compile's segments)
         goals = list(dict.fromkeys(g for r in ordered for g in r.distance))
         out.append(

@@ -14,6 +14,7 @@ compares the IR, and the diagnostics lint and compile report for each manikin.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from mtlc.lint import LintConfig, lint_paths
 from mtlc.lint.manikins import label, parse_selection
 from mtlc.passes import run_motion
 from mtlc.report import analyse_task
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 
 ROUNDS = Path("tests/lint/data/rounds.mtask")  # walks and turns of many lengths
@@ -60,12 +62,12 @@ def recorder(seen: list[Timeline], run: bool) -> Any:
 
 
 def patch_motion(monkeypatch: pytest.MonkeyPatch, seen: list[Timeline], run: bool) -> None:
-    # lint's and report's name for the motion passes (report's own before this change)
+    # lint's and report's name for the motion passes
     monkeypatch.setattr(mtlc.lint.engine, "run_motion", recorder(seen, run))
-    monkeypatch.setattr(mtlc.report.analysis, "run_motion", recorder(seen, run), raising=False)
+    monkeypatch.setattr(mtlc.report.analysis, "run_motion", recorder(seen, run))
 
 
-def schedule(timeline: Timeline) -> list[tuple[Any, ...]]:
+def primitives_of(timeline: Timeline) -> list[tuple[Any, ...]]:
     """Every primitive's kind, times (exact), parameters and source line."""
     return [
         (p.kind, p.effector, p.start, p.end, p.params, p.path, p.origin)
@@ -76,7 +78,7 @@ def schedule(timeline: Timeline) -> list[tuple[Any, ...]]:
 def same_timeline(got: Timeline, want: Timeline) -> None:
     assert got.manikin == want.manikin
     assert got.task == want.task
-    assert schedule(got) == schedule(want)
+    assert primitives_of(got) == primitives_of(want)
     assert got.as_dict() == want.as_dict()
 
 
@@ -121,6 +123,19 @@ def test_the_sweep_times_walks_for_each_body() -> None:
         (own,) = run_frontend([path]).timelines
         (again,) = compile_timelines(path, own.manikin)
         same_timeline(own, again)
+
+
+def test_the_motion_passes_refuse_a_manikin_the_walks_are_not_timed_for() -> None:
+    """Replacing the manikin of a timed timeline (what the sweeps did) keeps the other body's
+    walk times: run_motion refuses it, and the same timeline timed again runs."""
+    (own,) = run_frontend([ROUNDS]).timelines
+    other = SWEPT[0]
+    with pytest.raises(ValueError, match="not timed for gb10000_1988:female:1"):
+        run_motion(dataclasses.replace(own, manikin=other), DiagnosticSink(), until="manikin")
+    timed = schedule.for_manikin(own, other)
+    (expected,) = compile_timelines(ROUNDS, other)
+    same_timeline(timed, expected)
+    assert run_motion(timed, DiagnosticSink(), until="manikin").manikin["sex"] == "female"
 
 
 def ir_key(ir: MotionIR) -> list[tuple[Any, ...]]:

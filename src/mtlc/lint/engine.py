@@ -26,7 +26,6 @@ from mtlc.frontend import (
     run_frontend,
     time_task,
 )
-from mtlc.ir.model import MotionIR
 from mtlc.lint import suppress
 from mtlc.lint.config import LintConfig
 from mtlc.lint.findings import Finding, from_diagnostic, merge
@@ -191,7 +190,7 @@ def lint_one(sweep: Sweep, item: tuple[int, ManikinSpec]) -> list[Finding]:
     index, spec = item
     timeline = sweep.timelines[index]
     sink = DiagnosticSink()
-    ir = compile_timed(timeline, sink, sweep.options)
+    ir = run_motion(timeline, sink, sweep.options)  # timed for ``spec`` (time_for_sweep)
     out = [
         from_diagnostic(d, label(spec))
         for d in sink.sorted()
@@ -204,14 +203,6 @@ def lint_one(sweep: Sweep, item: tuple[int, ManikinSpec]) -> list[Finding]:
         if rule.on == "motion" and sweep.config.enabled(rule.code):
             out.extend(rule.check(view))  # type: ignore[arg-type]
     return out
-
-
-def compile_timed(timeline: Timeline, sink: DiagnosticSink, options: MotionOptions) -> MotionIR:
-    """The motion of a timeline timed for its manikin (``time_for_sweep``): what lint and
-    report judge, and what `mtlc compile --manikin` gives (tests/lint/test_sweep_manikin.py)."""
-    if not timeline.timed:
-        raise ValueError(f"task `{timeline.task}` is not timed for {label(timeline.manikin)}")
-    return run_motion(timeline, sink, options)
 
 
 def _internal_error(timeline: Timeline, spec: ManikinSpec, why: str) -> Finding:

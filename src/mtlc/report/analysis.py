@@ -21,14 +21,13 @@ from mtlc.ergonomics import rula as R
 from mtlc.frontend import DEFAULT_MOTION_BUDGET, time_task
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.lint.config import LintConfig
-from mtlc.lint.engine import compile_timed
 from mtlc.lint.manikins import label
 from mtlc.lint.rules.access import goal_openings
 from mtlc.lint.rules.reach import contact_goals, stature
 from mtlc.lint.rules.view import MotionView, make_view
 from mtlc.lint.rules.visibility import goal_sights
 from mtlc.metrics import foot_stance
-from mtlc.passes import MotionOptions
+from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.approach import HAND_NAMES, TOLERANCE
 from mtlc.passes.tool import is_stroke
 from mtlc.report.maintenance import TimeSplit, split_time
@@ -175,7 +174,7 @@ def measure_one(shared: tuple[tuple[Timeline, ...], MotionOptions], index: int) 
     timeline = timelines[index]
     spec = timeline.manikin
     result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
-    ir = compile_timed(timeline, DiagnosticSink(), options)
+    ir = run_motion(timeline, DiagnosticSink(), options)
     result.distance = contact_distances(ir)
     view = make_view(ir, "", LintConfig())  # the output frames posed once, for both below
     result.rula = worst_rula(ir, view)

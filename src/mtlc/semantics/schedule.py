@@ -26,7 +26,7 @@ def for_manikin(timeline: Timeline, spec: ManikinSpec) -> Timeline:
     lengthened for that body and what follows them moved later. ``timeline`` is left as it is
     (lint times one timeline for several manikins); a timeline already timed for a manikin is
     timed again from its untimed source (``expanded``)."""
-    base = timeline.expanded if timeline.timed else timeline
+    base = timeline.expanded if timeline.timed_for is not None else timeline
     if base is None:
         raise ValueError(f"task `{timeline.task}` is timed, and its untimed timeline is gone")
     # the timing sets a walk's `turn_time`/`gait_time` and moves start, end and a goal's
@@ -34,7 +34,21 @@ def for_manikin(timeline: Timeline, spec: ManikinSpec) -> Timeline:
     prims = [dataclasses.replace(p, params=dict(p.params)) for p in base.primitives]
     walks = {id(prims[i]) for i in base.mtm_walks}
     turning.add_turn_time(prims, walks, (0.0, base.ground, 0.0), body(spec))
-    return dataclasses.replace(base, manikin=spec, primitives=prims, timed=True, expanded=base)
+    return dataclasses.replace(base, manikin=spec, primitives=prims, timed_for=spec, expanded=base)
+
+
+def check_timed(timeline: Timeline) -> None:
+    """Refuse a timeline whose walks are not timed for its manikin: one never timed, or one
+    timed for another manikin whose ``manikin`` was replaced (its walks would keep the other
+    body's step time: the motion no command gives that manikin)."""
+    if timeline.timed_for == timeline.manikin:
+        return
+    spec = timeline.manikin
+    who = f"{spec.population}:{spec.sex}:{spec.percentile}"
+    raise ValueError(
+        f"task `{timeline.task}` is not timed for {who}: time it for that manikin with "
+        "mtlc.semantics.schedule.for_manikin (or frontend.time_task), not by replacing its manikin"
+    )
 
 
 def check_budget(timeline: Timeline, sink: DiagnosticSink) -> None:

@@ -74,9 +74,10 @@ class Timeline:
     # the indices in ``primitives`` of the walks timed by MTM-1 paces: the ones that get turn
     # time and the time their steps need (``semantics.schedule``)
     mtm_walks: tuple[int, ...] = ()
-    # whether those walks are timed yet: the expander's timeline is not (it is the same for
-    # every manikin), ``schedule.for_manikin`` returns a copy timed for one manikin's body
-    timed: bool = False
+    # the manikin whose body timed those walks: None in the expander's timeline (the same for
+    # every manikin); ``schedule.for_manikin`` returns a copy timed for one manikin's body, and
+    # the motion passes refuse a timeline whose ``manikin`` is not the one it is timed for
+    timed_for: ManikinSpec | None = None
     # a timed timeline's untimed source, which times it again for another manikin
     expanded: Timeline | None = field(default=None, compare=False, repr=False)
 

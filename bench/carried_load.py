@@ -11,7 +11,6 @@ the floor, in the middle of the walk and the largest over it. A manikin with no 
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -23,13 +22,14 @@ from mtlc.frontend import run_frontend
 from mtlc.lint.manikins import all_manikins
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries
+from mtlc.semantics import schedule
 
 
 def main(paths: list[str]) -> int:
     for path in paths:
         for m in all_manikins():
             (timeline,) = run_frontend([Path(path)]).timelines
-            timeline = dataclasses.replace(timeline, manikin=m)
+            timeline = schedule.for_manikin(timeline, m)
             ir = run_motion(timeline, DiagnosticSink(), MotionOptions())
             fr, skel = ir.frames, ir.skeleton
             assert fr is not None

@@ -37,6 +37,7 @@ import time
 import numpy as np
 
 from mtlc.geometry.distance import MeshIndex, brute_force_distance
+from mtlc.semantics import schedule
 
 CAPSULES_PER_FRAME = 16
 LIBRARIES = ("coal", "fcl")
@@ -83,7 +84,6 @@ def cpu(fn, repeat: int = 1) -> tuple[float, object]:
 
 def example_rows(path: str, sizes: list[int]) -> None:
     """The compile's CPU time and the clearance metric's on its frames (see the docstring)."""
-    import dataclasses
     from pathlib import Path
 
     from mtlc.diagnostics import DiagnosticSink
@@ -95,7 +95,7 @@ def example_rows(path: str, sizes: list[int]) -> None:
     t0 = time.process_time()
     program = run_frontend([Path(path)])
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "female", 5))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 5))
     ir = run_motion(timeline, DiagnosticSink())
     t_compile = time.process_time() - t0
     reach = next(s for s in ir.segments if s.kind == "TA" and s.goal.site)

@@ -15,7 +15,6 @@ codes raised. A number without ``(rep)`` over 1 mm is a silent miss.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.passes import MotionOptions, run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 MANIKINS = ["female:5", "female:50", "male:50", "male:95"]
@@ -106,7 +106,7 @@ def run(path, manikins, verbose):
             print("front-end errors", path, [d.message for d in prog.sink.items])
             return rows
         for tl in prog.timelines:
-            tl = dataclasses.replace(tl, manikin=ManikinSpec("gb10000_1988", sex, int(pct)))
+            tl = schedule.for_manikin(tl, ManikinSpec("gb10000_1988", sex, int(pct)))
             sink = DiagnosticSink()
             ir = run_motion(tl, sink, MotionOptions())
             misses, drifts, jump = measure(ir, sink)

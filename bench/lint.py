@@ -22,7 +22,6 @@ Wall times on a shared machine vary with the load: the CPU column and the ratio 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import resource
 import time
@@ -35,6 +34,7 @@ from mtlc.lint import LintConfig, lint_paths
 from mtlc.lint.engine import LintResult
 from mtlc.lint.manikins import EXTREMES, all_manikins, label
 from mtlc.passes import MOTION_PASSES, MotionOptions, PassContext, lower
+from mtlc.semantics import schedule
 
 ROOT = Path(__file__).resolve().parents[1]
 GOAL_RATIO = 3.0
@@ -65,7 +65,7 @@ def pass_times(path: Path) -> dict[str, float]:
     for timeline in run_frontend([path]).timelines:
         ctx = PassContext(DiagnosticSink(), MotionOptions())
         t0 = time.perf_counter()
-        ir = lower(dataclasses.replace(timeline, manikin=EXTREMES[0]))
+        ir = lower(schedule.for_manikin(timeline, EXTREMES[0]))
         out["lower"] = out.get("lower", 0.0) + time.perf_counter() - t0
         for name, motion_pass in MOTION_PASSES:
             t0 = time.perf_counter()

@@ -27,6 +27,7 @@ from mtlc.lint.rules.sustained import runs_at_or_above, sustained_posture
 from mtlc.lint.rules.view import MotionView, make_view
 from mtlc.lint.rules.visibility import site_out_of_view
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 MAN = ManikinSpec("gb10000_1988", "male", 50)
@@ -68,7 +69,7 @@ def _view(tmp: Path, name: str, text: str, config: LintConfig | None = None) -> 
     program = run_frontend([path])
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
-    ir = run_motion(dataclasses.replace(timeline, manikin=MAN), DiagnosticSink())
+    ir = run_motion(schedule.for_manikin(timeline, MAN), DiagnosticSink())
     view = make_view(ir, "gb10000_1988:male:50", config or LintConfig(), timeline)
     assert view is not None
     return view

@@ -8,7 +8,6 @@ comes back over the last.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 TASK = Path(__file__).parent / "data" / "stroke" / "low_nut_squat.mtask"
@@ -32,7 +32,7 @@ def compiled(request: pytest.FixtureRequest) -> tuple[MotionIR, DiagnosticSink]:
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
     sex, pct = request.param
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     return run_motion(timeline, sink), sink
 

@@ -9,8 +9,6 @@ hand-computed pull on the centre of mass.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -22,6 +20,7 @@ from mtlc.metrics import balance_margin, compute_metrics, support_margin, touchi
 from mtlc.passes import run_motion
 from mtlc.passes.tool import held_spans
 from mtlc.preview.document import figures
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 TORQUE_KG = 1.2  # stdlib/tools.mtask: torque_wrench
@@ -49,7 +48,7 @@ def torque_ir(tmp_path_factory: pytest.TempPathFactory) -> MotionIR:
     program = run_frontend([path])
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "male", 50))
     return run_motion(timeline, DiagnosticSink())
 
 

@@ -5,7 +5,6 @@ Expected values are computed by hand from stdlib/tools.mtask (docs/tools.md).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
 from mtlc.passes import tool as tool_pass
 from mtlc.passes.tool import arc_points, radius, stroke_plan, with_tools
+from mtlc.semantics import schedule
 from mtlc.semantics.expand import _strokes
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 
@@ -59,7 +59,7 @@ def _timeline(
     program = run_frontend([path])
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
-    return dataclasses.replace(timeline, manikin=MAN)
+    return schedule.for_manikin(timeline, MAN)
 
 
 def _diagnostics(tmp: Path, setting: str, args: str) -> list[str]:

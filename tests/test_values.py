@@ -3,7 +3,6 @@ line (issue 17, section 3; docs/language.md, "Limits"). Nothing reaches MT0900."
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import tracemalloc
 from pathlib import Path
@@ -14,7 +13,7 @@ from hypothesis import strategies as st
 
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.frontend import DEFAULT_MOTION_BUDGET, run_frontend
-from mtlc.semantics import mtm
+from mtlc.semantics import mtm, schedule
 from mtlc.semantics import values as V
 from mtlc.semantics.timeline import ManikinSpec
 from mtlc.syntax import ast
@@ -155,7 +154,7 @@ def test_a_tool_without_a_tip_works_at_its_grip(tmp_path: Path) -> None:
     program = _run(tmp_path, _task("    unscrew(right, a, turns: 1, tool: w)\n", extra))
     assert program.diagnostics == []
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "male", 50))
     ir = run_motion(timeline, DiagnosticSink(), until="tool")
     reach = [s for s in ir.segments if s.kind == "TO" and "stroke" not in s.goal.params]
     assert reach and all(s.goal.effector == "r_tool_w" for s in reach)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mtlc.diagnostics import Diagnostic, DiagnosticSink
+from mtlc.semantics import schedule
 from mtlc.semantics.check import Checker, check_recursion
 from mtlc.semantics.expand import DEFAULT_BUDGET, Expander
 from mtlc.semantics.modules import LoadedModule, ModuleLoader
@@ -61,6 +62,9 @@ class FrontendOptions:
     motion_budget: float = DEFAULT_MOTION_BUDGET  # seconds of motion per task
     manikin: ManikinSpec | None = None
     expand: bool = True
+    # False: the timelines as expanded, the same for every manikin and not yet timed for one
+    # (lint and report time them for each manikin they sweep, with ``time_task``)
+    timed: bool = True
     # scene sites at other positions (metres), by name: what `mtlc serve` does when one is dragged
     site_overrides: tuple[tuple[str, tuple[float, float, float]], ...] = ()
 
@@ -140,11 +144,34 @@ def expand_tasks(program: Program) -> Program:
         for decl in module.tree.decls:
             if isinstance(decl, ast.Task) and scope.own.get(decl.name) is not None:
                 timeline = expander.expand_task(decl, scope)
-                if timeline is not None and within_motion_budget(
-                    timeline, program.options.motion_budget, program.sink
-                ):
+                if timeline is not None:
                     program.timelines.append(timeline)
     return program
+
+
+def time_tasks(program: Program) -> Program:
+    """Each timeline timed for its manikin (the task's, or the options' override)."""
+    if not program.options.timed:
+        return program
+    timed = (
+        time_task(t, t.manikin, program.options.motion_budget, program.sink)
+        for t in program.timelines
+    )
+    program.timelines = [t for t in timed if t is not None]
+    return program
+
+
+def time_task(
+    timeline: Timeline, spec: ManikinSpec, motion_budget: float, sink: DiagnosticSink
+) -> Timeline | None:
+    """The expanded ``timeline`` timed for manikin ``spec`` (``schedule.for_manikin``: its
+    walks' step time depends on the body) and its time checked: the task's `budget` (MT0404)
+    and the motion budget (MT0407, and then None: no motion is compiled). Every command gets a
+    manikin's timeline here, compile for one manikin, lint and report for each they sweep, so a
+    manikin's motion and these findings are the same whichever command asks."""
+    timed = schedule.for_manikin(timeline, spec)
+    schedule.check_budget(timed, sink)
+    return timed if within_motion_budget(timed, motion_budget, sink) else None
 
 
 def format_duration(seconds: float) -> str:
@@ -190,6 +217,7 @@ FRONTEND: list[tuple[str, Callable[[Program], Program]]] = [
     ("check", check_definitions),
     ("cycles", check_call_cycles),
     ("expand", expand_tasks),
+    ("time", time_tasks),
 ]
 
 

@@ -3,7 +3,6 @@ checked independently with trimesh's closest-point query (not the collision libr
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from mtlc.frontend import run_frontend
 from mtlc.geometry.clearance import frame_clearance, goal_clearances
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 trimesh = pytest.importorskip("trimesh")
@@ -36,7 +36,7 @@ def panel_ir(request: pytest.FixtureRequest) -> MotionIR:
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
     sex, pct = request.param
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     return run_motion(timeline, DiagnosticSink())
 
 

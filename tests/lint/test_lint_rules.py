@@ -19,6 +19,7 @@ from mtlc.lint.rules import motion
 from mtlc.lint.rules.view import make_view
 from mtlc.lint.suppress import apply, scan
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 
 BAY = Path("tests/lint/data/bay.mtask")
 PROGRAM_ONLY = LintConfig(select=frozenset({"MT0601", "MT0602", "MT0606", "MT0404"}))
@@ -37,7 +38,7 @@ def bay() -> list[Finding]:
 def compiled():
     """The bay task compiled for the 5th-percentile woman (frames to tamper with)."""
     (timeline,) = run_frontend([BAY]).timelines
-    return run_motion(dataclasses.replace(timeline, manikin=EXTREMES[0]), DiagnosticSink())
+    return run_motion(schedule.for_manikin(timeline, EXTREMES[0]), DiagnosticSink())
 
 
 def test_mt0601_unused_definition(bay: list[Finding]) -> None:

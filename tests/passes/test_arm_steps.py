@@ -13,7 +13,6 @@ faster than a person's in the stroke's MTM time (the joint_speed pass gives them
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import all_manikins
 from mtlc.passes import MotionOptions, run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,7 +46,7 @@ KNOWN: dict[tuple[str, str], str] = {
 
 def compile_for(path: Path, manikin: ManikinSpec) -> MotionIR:
     (timeline,) = run_frontend([path]).timelines
-    timeline = dataclasses.replace(timeline, manikin=manikin)
+    timeline = schedule.for_manikin(timeline, manikin)
     return run_motion(timeline, DiagnosticSink(), MotionOptions())
 
 

@@ -12,7 +12,6 @@ Measured on the sampled frames by forward kinematics.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ import pytest
 from mtlc.body import forward, site_positions
 from mtlc.frontend import run_frontend
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 PICK_UP = """use stdlib.actions
@@ -53,7 +53,7 @@ def test_a_part_picked_off_the_floor_rises_with_the_body(
     path.write_text(PICK_UP, encoding="utf-8")
     program = run_frontend([path])
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     ir = run_motion(timeline, program.sink)
     f = ir.frames
     assert f is not None
@@ -77,7 +77,7 @@ def test_a_box_picked_off_the_floor_comes_up_below_the_shoulder(tmp_path: Path) 
     path.write_text(PICK_UP, encoding="utf-8")
     program = run_frontend([path])
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "male", 50))
     ir = run_motion(timeline, program.sink)
     f = ir.frames
     assert f is not None

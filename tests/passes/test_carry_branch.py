@@ -9,7 +9,6 @@ read off the output frames as in test_arm_steps.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import _let_go_at_branch_jumps
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,7 +30,7 @@ STEP = 12.0  # deg between two output frames at 30 fps
 
 def compile_for(manikin: ManikinSpec) -> MotionIR:
     (timeline,) = run_frontend([LID]).timelines
-    timeline = dataclasses.replace(timeline, manikin=manikin)
+    timeline = schedule.for_manikin(timeline, manikin)
     return run_motion(timeline, DiagnosticSink(), MotionOptions())
 
 

@@ -12,7 +12,6 @@ the arms as the pass found them there.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ from mtlc.lint.manikins import all_manikins
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries
 from mtlc.passes.carry_pose import elbow_height
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -36,7 +36,7 @@ MANIKINS = [m for m in all_manikins() if (m.sex, m.percentile) in
 
 def compile_for(path: Path, manikin: ManikinSpec, until: str | None = None) -> MotionIR:
     (timeline,) = run_frontend([path]).timelines
-    timeline = dataclasses.replace(timeline, manikin=manikin)
+    timeline = schedule.for_manikin(timeline, manikin)
     return run_motion(timeline, DiagnosticSink(), MotionOptions(), until=until)
 
 

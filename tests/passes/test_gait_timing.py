@@ -16,7 +16,7 @@ from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.metrics import foot_points
 from mtlc.passes import run_motion
-from mtlc.semantics import gait
+from mtlc.semantics import gait, schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 SCENE = """use stdlib.actions
@@ -159,7 +159,6 @@ def test_a_walk_given_more_time_than_its_steps_takes_one_more_not_slower_ones() 
     below 90 steps/min takes one step more: the footing pass moved the access panel's bench
     stance 12 cm back for the 50th-percentile man and the walk there kept 7 steps in 5.15 s
     (81.6 steps/min)."""
-    import dataclasses
 
     from mtlc.diagnostics import DiagnosticSink
     from mtlc.passes import MotionOptions
@@ -167,7 +166,7 @@ def test_a_walk_given_more_time_than_its_steps_takes_one_more_not_slower_ones() 
     root = Path(__file__).resolve().parents[2]
     (timeline,) = run_frontend([root / "examples" / "remove_access_panel_cad.mtask"]).timelines
     man = ManikinSpec("gb10000_1988", "male", 50)
-    ir = run_motion(dataclasses.replace(timeline, manikin=man), DiagnosticSink(), MotionOptions())
+    ir = run_motion(schedule.for_manikin(timeline, man), DiagnosticSink(), MotionOptions())
     walks = [s for s in ir.segments if s.kind == "locomotion" and s.result.get("steps")]
     assert any(s.result.get("stance_moved") for s in walks)  # the case this is about
     for seg in walks:

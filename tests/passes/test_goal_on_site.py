@@ -10,8 +10,6 @@ ends on its site is pinned like a TO, ``balance.ends_on_site``).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -20,6 +18,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 TASK = """use stdlib.actions
@@ -53,7 +52,7 @@ def compiled(
     program = run_frontend([path])
     (timeline,) = program.timelines
     sex, pct = request.param
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     ir = run_motion(timeline, sink)
     return ir, [d.code for d in sink.items]

@@ -9,7 +9,6 @@ a user receives), by forward kinematics.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.hold import hold_spans
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,7 +79,7 @@ def compile_file(path: Path, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSi
     program = run_frontend([path])
     assert not program.sink.has_errors, [d.message for d in program.sink.items]
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

@@ -13,7 +13,6 @@ starts from a natural stand (``settle``). Measured on the output frames by forwa
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "lift"
@@ -40,7 +40,7 @@ def compile_for(name: str, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink
     program = run_frontend([DATA / name])
     assert not program.sink.has_errors, [d.message for d in program.sink.items]
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

@@ -3,8 +3,6 @@ approach to contact, measured on the frames a user receives (issue 19)."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from scipy.signal import find_peaks
@@ -15,6 +13,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.pace import minimum_jerk, movements, smooth_path
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 REACH = """use stdlib.actions
@@ -65,7 +64,7 @@ def compiled(tmp_path_factory: pytest.TempPathFactory) -> MotionIR:
     program = run_frontend([path])
     assert not program.sink.has_errors, [d.message for d in program.sink.items]
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "male", 50))
     return run_motion(timeline, DiagnosticSink(), MotionOptions())
 
 
@@ -118,7 +117,7 @@ def test_a_part_in_both_hands_is_carried_rigid_before_the_carry_pass(
 
     path = Path(__file__).resolve().parents[2] / "tests/data/arms/a02_two_hands_high_low.mtask"
     (timeline,) = run_frontend([path]).timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, percentile))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, percentile))
     ir = run_motion(timeline, DiagnosticSink(), MotionOptions(), until="interpolate")
     frames = ir.frames
     assert frames is not None

@@ -14,7 +14,6 @@ definitions (the path at rest before and after it; peaks of at least 10 % of the
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from mtlc.body import part_site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.passes import MotionOptions, run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 PROCEDURE = Path(__file__).resolve().parents[1] / "data" / "lift" / "l04_stand_then_move.mtask"
@@ -52,7 +52,7 @@ def speed_peaks(speed: np.ndarray) -> int:
 def test_the_move_after_a_carried_stand_is_one_smooth_bell(sex: str, pct: int) -> None:
     program = run_frontend([PROCEDURE])
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     ir = run_motion(timeline, DiagnosticSink(), MotionOptions())
     f = ir.frames
     assert f is not None

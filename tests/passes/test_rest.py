@@ -7,7 +7,6 @@ ergonomics scored an arm doing nothing. Not an example: a procedure made for thi
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from mtlc.frontend import run_frontend
 from mtlc.lint.manikins import parse_selection
 from mtlc.passes import run_motion
 from mtlc.passes.rest import REST_TIME
+from mtlc.semantics import schedule
 
 PROCEDURE = """use stdlib.actions
 use stdlib.elements
@@ -52,7 +52,7 @@ def _compile(tmp_path: Path, between: str, before: str = "", manikin: str | None
     assert not program.sink.has_errors
     (timeline,) = program.timelines
     if manikin is not None:
-        timeline = dataclasses.replace(timeline, manikin=parse_selection(manikin)[0])
+        timeline = schedule.for_manikin(timeline, parse_selection(manikin)[0])
     sink = DiagnosticSink()
     return timeline, run_motion(timeline, sink), sink
 
@@ -126,7 +126,7 @@ def test_the_grasp_after_a_rest_starts_where_the_rest_left_the_arm() -> None:
     path = Path(__file__).parents[1] / "data" / "arms" / "a01_across_body.mtask"
     program = run_frontend([path])
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=parse_selection("gb10000_1988:female:5")[0])
+    timeline = schedule.for_manikin(timeline, parse_selection("gb10000_1988:female:5")[0])
     ir = run_motion(timeline, DiagnosticSink())
     assert [s for s in ir.segments if s.kind == "rest" and s.track == "r_arm"]
     skel, f = ir.skeleton, ir.frames

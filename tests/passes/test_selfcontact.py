@@ -9,7 +9,6 @@ output frames by forward kinematics, on an example and on procedures written for
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries, part_ends
 from mtlc.passes.posture import clear_arms
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -84,7 +84,7 @@ def compile_file(
     program = run_frontend([path])
     (timeline,) = program.timelines
     if manikin is not None:
-        timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", *manikin))
+        timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", *manikin))
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

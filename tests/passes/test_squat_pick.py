@@ -14,7 +14,6 @@ found on and the smallest one (all 14 in the report of the change: docs/passes.m
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "squat"
@@ -34,7 +34,7 @@ def compile_for(name: str, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink
     program = run_frontend([DATA / name])
     assert not program.sink.has_errors, [d.message for d in program.sink.items]
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

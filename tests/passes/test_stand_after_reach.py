@@ -8,7 +8,6 @@ the restated first key took the lean, and the trunk came up 60° in the 0.3 s to
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.lint.manikins import parse_selection
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 
 PROCEDURE = """use stdlib.actions
 use stdlib.elements
@@ -46,7 +46,7 @@ def _compile(tmp_path: Path, steps: str, manikin: str | None = None):  # type: i
     assert not program.sink.has_errors
     (timeline,) = program.timelines
     if manikin is not None:
-        timeline = dataclasses.replace(timeline, manikin=parse_selection(manikin)[0])
+        timeline = schedule.for_manikin(timeline, parse_selection(manikin)[0])
     return timeline, run_motion(timeline, DiagnosticSink())
 
 

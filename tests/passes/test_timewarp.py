@@ -3,7 +3,6 @@ longer, everything alongside it keeps its place relative to it, everything after
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ from mtlc.ir.model import GoalSpec, Keyframes, MotionIR, Provenance, Segment, So
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.pace import PEAK_JOINT_SPEED, ReachPath, needed_time
 from mtlc.passes.timewarp import Stretch, TimeWarp, apply
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -76,7 +76,7 @@ def test_a_swing_too_fast_for_its_time_is_given_more(tmp_path: Path) -> None:
     body took 0.41 s for 156 deg of shoulder flexion (18.7 deg a frame); now no arm dof of the
     paced reaches turns faster than 360 deg/s on the dense frames, and the task lasts longer."""
     (timeline,) = run_frontend([ROOT / "tests/data/arms/a01_across_body.mtask"]).timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "female", 1))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 1))
     ir = run_motion(timeline, DiagnosticSink(), MotionOptions(), until="pace")
     paced = [s for s in ir.segments if s.result.get("paced")]
     assert paced

@@ -11,7 +11,6 @@ no part squeezed or stretched (MT0511).
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import all_manikins
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries, part_path
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,7 +35,7 @@ KEPT = 5e-3  # m: the hands' distance stays this close to the grip's
 
 def compile_for(path: Path, manikin: ManikinSpec) -> tuple[MotionIR, DiagnosticSink]:
     (timeline,) = run_frontend([path]).timelines
-    timeline = dataclasses.replace(timeline, manikin=manikin)
+    timeline = schedule.for_manikin(timeline, manikin)
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

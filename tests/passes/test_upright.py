@@ -6,7 +6,6 @@ inspection of a gauge at head height: nothing but a user-written `stand()` strai
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import parse_selection
 from mtlc.passes import run_motion
+from mtlc.semantics import schedule
 
 DATA = Path(__file__).parents[1] / "data" / "upright"
 TRUNK_FLEX = ("lumbar_flex", "thorax_flex")
@@ -27,7 +27,7 @@ def _compile(path: Path, manikin: str) -> MotionIR:
     program = run_frontend([path])
     assert not program.sink.has_errors
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=parse_selection(manikin)[0])
+    timeline = schedule.for_manikin(timeline, parse_selection(manikin)[0])
     return run_motion(timeline, DiagnosticSink())
 
 

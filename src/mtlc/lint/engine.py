@@ -1,23 +1,31 @@
-"""Lint = front end (once per file) + motion passes per manikin + rules over the results.
+"""Lint = front end (once per file) + timing and motion passes per manikin + rules over them.
 
 The sweep: every selected manikin is compiled in full (every motion pass) and every motion
-rule runs on it, so a finding for one manikin is exactly what `mtlc compile` and the rules say
-for that manikin, never a guess from a neighbour. The front end runs once per file in this
-process; the (task, manikin) compiles run through mtlc.executor (``jobs`` worker processes,
-the timelines shipped to them once), and their findings come back in a fixed order, so the
-result is the same whatever the number of jobs. Findings for several manikins merge into one
-that names them all.
+rule runs on it, so a finding for one manikin is exactly what `mtlc compile --manikin` and the
+rules say for that manikin, never a guess from a neighbour. The front end runs once per file in
+this process and leaves its timelines untimed (the same for every manikin); each is then timed
+for each manikin as compile times it (``frontend.time_task``: a walk's steps take the time of
+that body's gait, and the task's budget, MT0404, and the motion budget, MT0407, are checked on
+that time). The (task, manikin) compiles run through mtlc.executor (``jobs`` worker processes,
+the timed timelines shipped to them once), and their findings come back in a fixed order, so
+the result is the same whatever the number of jobs. Findings for several manikins merge into
+one that names them all.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mtlc import executor
 from mtlc.diagnostics import DiagnosticSink, Severity
-from mtlc.frontend import DEFAULT_MOTION_BUDGET, FrontendOptions, Program, run_frontend
+from mtlc.frontend import (
+    DEFAULT_MOTION_BUDGET,
+    FrontendOptions,
+    Program,
+    run_frontend,
+    time_task,
+)
 from mtlc.lint import suppress
 from mtlc.lint.config import LintConfig
 from mtlc.lint.findings import Finding, from_diagnostic, merge
@@ -90,9 +98,11 @@ def lint_paths(
     findings: list[Finding] = []
     sources: dict[str, str] = {}
     roots: list[str] = []
-    timelines: list[Timeline] = []
+    timed: list[tuple[Timeline, ManikinSpec]] = []
     for path in files:
-        options = FrontendOptions(include_dirs=include_dirs, motion_budget=motion_budget)
+        options = FrontendOptions(
+            include_dirs=include_dirs, motion_budget=motion_budget, timed=False
+        )
         program = run_frontend([path], options)
         sources.update(program.sources)
         roots.extend(str(m.tree.path) for m in program.roots)
@@ -100,12 +110,13 @@ def lint_paths(
         if program.sink.has_errors:
             continue  # rules read checked code only
         findings.extend(_program_rules(program, config))
-        if not any(config.enabled(c) for c in MOTION_CODES):
-            continue
-        timelines.extend(program.timelines)
-    if timelines:
-        sweep = Sweep(tuple(timelines), config, motion or MotionOptions())
-        findings.extend(run_sweep(sweep, selection, jobs))
+        found, compiled = time_for_sweep(program.timelines, selection, motion_budget)
+        findings.extend(found)
+        if any(config.enabled(c) for c in MOTION_CODES):
+            timed.extend(compiled)
+    if timed:
+        sweep = Sweep(tuple(t for t, _ in timed), config, motion or MotionOptions())
+        findings.extend(run_sweep(sweep, [spec for _, spec in timed], jobs))
     # errors cannot be deselected: code that does not compile is never 'clean'
     findings = [f for f in findings if config.enabled(f.code) or f.severity is Severity.ERROR]
     marks = [s for file in dict.fromkeys(roots) for s in suppress.scan(file, sources.get(file, ""))]
@@ -122,6 +133,25 @@ def lint_paths(
     )
 
 
+def time_for_sweep(
+    timelines: list[Timeline], selection: tuple[ManikinSpec, ...], motion_budget: float
+) -> tuple[list[Finding], list[tuple[Timeline, ManikinSpec]]]:
+    """Each untimed timeline timed for each manikin of ``selection`` as `mtlc compile
+    --manikin` times it (``frontend.time_task``): the findings of that (MT0404, MT0407) for
+    the manikin, and the (timeline, manikin) pairs to compile, in task then selection order
+    (a task past the motion budget for a manikin is not compiled for it)."""
+    findings: list[Finding] = []
+    out: list[tuple[Timeline, ManikinSpec]] = []
+    for timeline in timelines:
+        for spec in selection:
+            sink = DiagnosticSink()
+            timed = time_task(timeline, spec, motion_budget, sink)
+            findings.extend(from_diagnostic(d, label(spec)) for d in sink.sorted())
+            if timed is not None:
+                out.append((timed, spec))
+    return findings, out
+
+
 def _program_rules(program: Program, config: LintConfig) -> list[Finding]:
     out: list[Finding] = []
     for rule in RULES:
@@ -134,18 +164,17 @@ def _program_rules(program: Program, config: LintConfig) -> list[Finding]:
 class Sweep:
     """What every compile of a lint run shares, shipped to each worker once."""
 
-    timelines: tuple[Timeline, ...]
+    timelines: tuple[Timeline, ...]  # each timed for the manikin it is compiled for
     config: LintConfig
     options: MotionOptions
 
 
-def run_sweep(
-    sweep: Sweep, selection: tuple[ManikinSpec, ...], jobs: int | None = None
-) -> list[Finding]:
-    """Every (task, manikin) compiled in full and its motion rules, through the executor; the
-    findings in task order, then selection order. A compile that raised or whose worker died
-    is one MT0900 finding for that task and manikin; the others go on."""
-    items = [(i, spec) for i in range(len(sweep.timelines)) for spec in selection]
+def run_sweep(sweep: Sweep, specs: list[ManikinSpec], jobs: int | None = None) -> list[Finding]:
+    """Every timeline of the sweep compiled in full for its manikin (``specs``, one each) and
+    its motion rules, through the executor; the findings in the sweep's order. A compile that
+    raised or whose worker died is one MT0900 finding for that task and manikin; the others
+    go on."""
+    items = list(enumerate(specs))
     out: list[Finding] = []
     for (i, spec), outcome in zip(items, executor.run(lint_one, sweep, items, jobs), strict=True):
         if isinstance(outcome, executor.Done):
@@ -161,7 +190,7 @@ def lint_one(sweep: Sweep, item: tuple[int, ManikinSpec]) -> list[Finding]:
     index, spec = item
     timeline = sweep.timelines[index]
     sink = DiagnosticSink()
-    ir = run_motion(dataclasses.replace(timeline, manikin=spec), sink, sweep.options)
+    ir = run_motion(timeline, sink, sweep.options)  # timed for ``spec`` (time_for_sweep)
     out = [
         from_diagnostic(d, label(spec))
         for d in sink.sorted()

@@ -38,6 +38,7 @@ from mtlc.passes import (
 )
 from mtlc.passes.context import MotionOptions, PassContext
 from mtlc.passes.lower import lower
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import Timeline
 
 MotionPass = Callable[[MotionIR, PassContext], MotionIR]
@@ -79,7 +80,10 @@ def run_motion(
     *,
     until: str | None = None,
 ) -> MotionIR:
-    """Lower a timeline and run the passes in order (``until`` stops after the named pass)."""
+    """Lower a timeline and run the passes in order (``until`` stops after the named pass).
+    The timeline must be timed for its manikin (``schedule.check_timed``): the motion of a
+    manikin is then the same whichever command asks for it."""
+    schedule.check_timed(timeline)
     ctx = PassContext(sink, options or MotionOptions())
     ir = lower(timeline)
     for name, motion_pass in MOTION_PASSES:

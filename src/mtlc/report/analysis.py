@@ -1,15 +1,16 @@
 """What `mtlc report` measures for a task and a set of manikins.
 
-The sweep is lint's (docs/lint.md): every manikin is compiled in full (every motion pass),
-through mtlc.executor (worker processes; the same numbers whatever their count). For each
-manikin: how far the hand stays from each contact goal's site, and the worst RULA grand score
-with its time and task line. The predicted time does not depend on the
-manikin (MTM-1 distances come from the scene), so it is computed once per task.
+The sweep is lint's (docs/lint.md): every manikin's timeline is timed for it as `mtlc compile
+--manikin` times it (``frontend.time_task``: a walk's steps take that body's time) and compiled
+in full (every motion pass), through mtlc.executor (worker processes; the same numbers whatever
+their count). For each manikin: how far the hand stays from each contact goal's site, and the
+worst RULA grand score with its time and task line. The predicted time is the task's timeline
+as given (timed for the task's own manikin): MTM-1 distances come from the scene, and only a
+walk's steps depend on the body.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,6 +18,7 @@ import numpy as np
 from mtlc import executor
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.ergonomics import rula as R
+from mtlc.frontend import DEFAULT_MOTION_BUDGET, time_task
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.lint.config import LintConfig
 from mtlc.lint.manikins import label
@@ -71,6 +73,9 @@ class ManikinResult:
     seen: dict[GoalRef, float] = field(default_factory=dict)
     opening: dict[GoalRef, tuple[float, float, str]] = field(default_factory=dict)
     error: str | None = None
+    # s, the task's predicted time for this manikin (its walks' steps take its body's time);
+    # None when it is past the motion budget
+    time: float | None = None
 
     @property
     def label(self) -> str:
@@ -116,22 +121,36 @@ def analyse_tasks(
     *,
     options: MotionOptions | None = None,
     jobs: int | None = None,
+    motion_budget: float = DEFAULT_MOTION_BUDGET,
 ) -> list[TaskResult]:
-    """Every (task, manikin) compiled in full, ``jobs`` at a time (None: one per CPU)."""
-    shared = (tuple(timelines), options or MotionOptions())
-    items = [(i, spec) for i in range(len(timelines)) for spec in selection]
-    outcomes = iter(executor.run(measure_one, shared, items, jobs))
+    """Every (task, manikin) timed for that manikin and compiled in full, ``jobs`` at a time
+    (None: one per CPU); one over ``motion_budget`` (MT0407) is a failed row, not compiled."""
+    timed: list[Timeline] = []
+    over: dict[tuple[int, int], str] = {}  # (task, manikin) index -> MT0407's message
+    for i, timeline in enumerate(timelines):
+        for k, spec in enumerate(selection):
+            sink = DiagnosticSink()
+            one = time_task(timeline, spec, motion_budget, sink)
+            if one is None:
+                over[i, k] = "; ".join(d.message for d in sink.sorted() if d.code == "MT0407")
+            else:
+                timed.append(one)
+    shared = (tuple(timed), options or MotionOptions())
+    outcomes = iter(executor.run(measure_one, shared, list(range(len(timed))), jobs))
+    durations = iter(t.duration for t in timed)
     out = []
-    for timeline in timelines:
+    for i, timeline in enumerate(timelines):
         ordered = []
-        for spec in selection:
-            outcome = next(outcomes)
+        for k, spec in enumerate(selection):
+            outcome = executor.Failed(over[i, k]) if (i, k) in over else next(outcomes)
             if isinstance(outcome, executor.Done):
                 ordered.append(outcome.value)
             else:
                 failed = ManikinResult(spec, stature(spec) / 1000.0, FAILED)
                 failed.error = outcome.message
                 ordered.append(failed)
+            if (i, k) not in over:
+                ordered[-1].time = next(durations)
         # in the order of the motion (the first compile's segments)
         goals = list(dict.fromkeys(g for r in ordered for g in r.distance))
         out.append(
@@ -148,15 +167,14 @@ def analyse_tasks(
     return out
 
 
-def measure_one(
-    shared: tuple[tuple[Timeline, ...], MotionOptions], item: tuple[int, ManikinSpec]
-) -> ManikinResult:
-    """One task compiled for one manikin: its distances and worst RULA (runs in a worker; a
-    bug in a pass is the executor's Failed, a FAILED row, and the others go on)."""
+def measure_one(shared: tuple[tuple[Timeline, ...], MotionOptions], index: int) -> ManikinResult:
+    """One task compiled for the manikin it is timed for: its distances and worst RULA (runs in
+    a worker; a bug in a pass is the executor's Failed, a FAILED row, and the others go on)."""
     timelines, options = shared
-    index, spec = item
+    timeline = timelines[index]
+    spec = timeline.manikin
     result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
-    ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), DiagnosticSink(), options)
+    ir = run_motion(timeline, DiagnosticSink(), options)
     result.distance = contact_distances(ir)
     view = make_view(ir, "", LintConfig())  # the output frames posed once, for both below
     result.rula = worst_rula(ir, view)

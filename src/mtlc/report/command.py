@@ -110,7 +110,7 @@ def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float],
         sys.stderr.write(f"mtlc report: no task named {args.task!r}\n" if args.task else
                          "mtlc report: no task in the files\n")  # fmt: skip
         return EXIT_USAGE
-    tasks = analyse_tasks(timelines, selection, jobs=jobs)
+    tasks = analyse_tasks(timelines, selection, jobs=jobs, motion_budget=args.motion_budget)
     report = Report(tasks, selection, ratio)
     files: dict[Path, str | bytes] = {}
     if args.output is not None:

@@ -88,6 +88,8 @@ def _manikin_rows(task: TaskResult) -> list[dict[str, str]]:
         reached = sum(1 for g in task.goals if m.reached(g))
         out.append({**base, "metric": "sites_reached", "value": str(reached), "unit": "1",
                     "note": m.error or f"of {len(task.goals)}"})  # fmt: skip
+        if m.time is not None:
+            out.append({**base, "metric": "time", "value": f"{m.time:.3f}", "unit": "s"})
         if m.rula is not None:
             r = m.rula
             where = {

@@ -65,14 +65,15 @@ def manikin_table(task: TaskResult) -> Table:
                 _shortfalls(task, m),
                 _rula(m),
                 _rula_where(m),
-                f"{task.time.total:.2f} s",
+                "—" if m.time is None else f"{m.time:.2f} s",
             )
         )
         bad = "bad" if m.method == FAILED or any(m.reached(g) is False for g in task.goals) else ""
         marks.append(("", "", "", bad, bad, _rula_mark(m), "", ""))
     note = (
         "compiled: full = every motion pass for this manikin; failed = its compile stopped (the "
-        "reason is printed). The MTM-1 time does not depend on the manikin."
+        "reason is printed). The MTM-1 time is this manikin's: a walk's steps take the time of "
+        "its body's gait (the split below is the task's own manikin's)."
     )
     return Table("Manikins", header, rows, note, marks)
 

@@ -15,10 +15,9 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
-from mtlc.body.anthropometry import dimensions
 from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.semantics import builtins as B
-from mtlc.semantics import mtm, turning
+from mtlc.semantics import mtm
 from mtlc.semantics import types as T
 from mtlc.semantics import values as V
 from mtlc.semantics.check import TOOL_RANGES, check_manikin
@@ -202,11 +201,14 @@ class Expander:
                 tool=self.tool,
                 budget=budget,
                 models=models,
+                budget_span=budget_span,
             )
             self.out = timeline.primitives
             self.block(task.body, env, 0.0)
-            turning.add_turn_time(
-                timeline.primitives, self.mtm_walks, (0.0, ground, 0.0), _body(timeline.manikin)
+            # the walks' turn and step time depend on the body: added per manikin by
+            # semantics.schedule.for_manikin, after expansion
+            timeline.mtm_walks = tuple(
+                i for i, p in enumerate(timeline.primitives) if id(p) in self.mtm_walks
             )
             timeline.sites = [*self.task_sites.values(), *self.other_sites.values()]
         except _BudgetExceeded as exc:
@@ -227,15 +229,7 @@ class Expander:
             return None
         if not timeline.primitives:
             self.sink.report("MT0402", f"task `{task.name}` produces no motion", task.name_span)
-        if budget is not None and timeline.duration > budget:
-            self.sink.report(
-                "MT0404",
-                f"task `{task.name}` takes {timeline.duration:.1f} s, over its budget of "
-                f"{budget:.1f} s",
-                budget_span,
-                notes=("the time is predicted from MTM-1 and the stated durations",),
-            )
-        return timeline
+        return timeline  # its budget (MT0404) is checked once timed for a manikin
 
     def fail(self, code: str, message: str, env: _Env, at: ast.Node, help: str | None = None):  # type: ignore[no-untyped-def]
         """Report a value error found while expanding, at the task's line that led to it."""
@@ -1177,14 +1171,3 @@ def _user_line(env: _Env, stmt: ast.Node) -> Span:
 
 def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.dist(a, b)
-
-
-@cache
-def _body(spec: ManikinSpec) -> tuple[float, str] | None:
-    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``); worked
-    out once per manikin (its table rows are fixed), not once per task."""
-    try:
-        dims = dimensions(spec.population, spec.sex, spec.percentile)
-    except (KeyError, ValueError):
-        return None  # an unknown manikin is reported elsewhere; MTM times its walks
-    return dims.stature, spec.sex

@@ -69,6 +69,17 @@ class Timeline:
     primitives: list[Primitive] = field(default_factory=list)
     # the scene's models and solids, placed (mtlc.geometry.model.SceneModel)
     models: list[Any] = field(default_factory=list)
+    # where the `budget` statement is (MT0404 is reported there)
+    budget_span: Span | None = None
+    # the indices in ``primitives`` of the walks timed by MTM-1 paces: the ones that get turn
+    # time and the time their steps need (``semantics.schedule``)
+    mtm_walks: tuple[int, ...] = ()
+    # the manikin whose body timed those walks: None in the expander's timeline (the same for
+    # every manikin); ``schedule.for_manikin`` returns a copy timed for one manikin's body, and
+    # the motion passes refuse a timeline whose ``manikin`` is not the one it is timed for
+    timed_for: ManikinSpec | None = None
+    # a timed timeline's untimed source, which times it again for another manikin
+    expanded: Timeline | None = field(default=None, compare=False, repr=False)
 
     @property
     def duration(self) -> float:

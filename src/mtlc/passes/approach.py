@@ -184,6 +184,50 @@ def pins_off(
     return worst
 
 
+def goals_off(
+    state: PoseState, goals: list[Goal], q: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> float:
+    """How far (m) the farthest of the position ``goals`` is from its effector in pose ``q``."""
+    return max(
+        (hand_distance(state, g.effector, q, root, g.position) for g in goals
+         if g.position is not None),
+        default=0.0,
+    )  # fmt: skip
+
+
+def held_pose(
+    ctx: PassContext,
+    state: PoseState,
+    goals: list[Goal],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    seeds: list[FloatArray],
+) -> FloatArray:
+    """The least trunk lean meeting every goal (the reaching hands' and the held ones'), from
+    ``q0``, the upright trunk, ``seeds`` and random starts (``mtlc.body.ik.lean``), then the
+    held hands put back on their sites by their arms alone; once per compile for one question.
+
+    ``solve_ta``'s pull to upright fades as the error goes to 0, so its descent from the body
+    as it is stopped at a deep lean where both hands could not be met: the reach was reported
+    unreachable (MT0501) though poses that meet both goals exist."""
+    from mtlc.body.ik.lean import solve_held
+
+    if any(g.position is None or g.orientation is not None or g.aim is not None for g in goals):
+        return seeds[0] if seeds else q0  # (a position solve only: a tool's axis is not one)
+    store: dict[Any, FloatArray] = ctx.cache.setdefault("passes.approach.held", {})
+    key = (
+        tuple((g.effector, np.asarray(g.position, dtype=float).tobytes()) for g in goals),
+        q0.tobytes(), root[0].tobytes(), root[1].tobytes(),
+        tuple(np.asarray(s).tobytes() for s in seeds),
+    )  # fmt: skip
+    if key not in store:
+        res = solve_held(
+            state.skel, goals, q0, root_position=root[0], root_rotation=root[1], seeds=seeds
+        )
+        store[key] = res.q[0]
+    return store[key].copy()
+
+
 def with_pinned(
     skel: Any, names: tuple[str, ...], pinned: list[Goal], reach: str
 ) -> tuple[str, ...]:
@@ -331,7 +375,17 @@ def _solve_group(
         m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
         qt = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
         qt = repin(ctx, skel, qt, pinned, root)[0]
-        return qt if pins_off(state, pinned, qt[None], root) <= TOLERANCE else None
+        held = pins_off(state, pinned, qt[None], root) <= TOLERANCE
+        if held and goals_off(state, goals, qt, root) <= TOLERANCE:
+            return qt
+        # the descent stopped at a lean where the goals are not both met: the least lean
+        # that meets them, from several starts (``held_pose``), before giving the reach up
+        qh = held_pose(ctx, state, both, q0, root, [qt])
+        if pins_off(state, pinned, qh[None], root) <= TOLERANCE and (
+            not held or goals_off(state, goals, qh, root) < goals_off(state, goals, qt, root)
+        ):
+            return qh
+        return qt if held else None
 
     def distances(qc: FloatArray) -> list[float]:
         return [

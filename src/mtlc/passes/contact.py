@@ -28,6 +28,7 @@ from mtlc.passes.approach import (
     _restaters,
     groups,
     hand_target,
+    held_pose,
     model_for,
     own_names,
     pinned_hands,
@@ -181,6 +182,13 @@ def best_path(
             path, reach, dist = p, r, d
         if dist[-1].max() <= TOLERANCE:
             break
+    if pinned and dist[-1].max() > TOLERANCE:
+        # every descent stopped short at a deep lean: the least lean that meets the site and
+        # the held hands (``approach.held_pose``), before the reach is called unreachable
+        q_least = held_pose(ctx, state, goals + list(pinned), q0, root, [q_held, path[-1]])
+        p, d = finished(q0[None] + steps * (q_least - q0)[None], "torso")
+        if d[-1].max() < dist[-1].max():
+            path, reach, dist = p, "torso", d
     return path, reach, dist
 
 

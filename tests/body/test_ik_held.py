@@ -47,9 +47,7 @@ def test_two_hand_goals_from_a_real_pose_are_met(
     sk = SKELETONS[body]
     truth = _random_pose(sk, np.random.default_rng(seed), lean)
     pose = forward(sk, truth[None])
-    goals = [
-        Goal(h, position=site_positions(sk, pose, h)[0]) for h in ("r_hand", "l_hand")
-    ]
+    goals = [Goal(h, position=site_positions(sk, pose, h)[0]) for h in ("r_hand", "l_hand")]
     res = solve_held(sk, goals, sk.q_comfort, seed=seed % 1000)
     q = res.q[0]
     assert sk.within_limits(q[None])[0]

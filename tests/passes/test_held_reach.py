@@ -83,7 +83,7 @@ def test_a_held_reach_is_short_only_when_no_pose_meets_it(
     assert reaches
     held = [(c, end) for c, end in spans if c.track == "l_arm"]
     assert held
-    contact, held_end = held[0]
+    contact = held[0][0]
     reach = reaches[0]
     i = int(np.argmin(np.abs(frames.time - reach.end)))
     off = float(np.linalg.norm(site_positions(skel, pose, "r_hand")[i] - reach.goal.position))

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..kinematics import einsum
 from ..skeleton import Skeleton
-from .dls import prepare, solve_ta, solve_spd
+from .dls import prepare, solve_spd, solve_ta
 from .goals import Goal, normalise
 from .result import IKResult, residual, returned_errors
 

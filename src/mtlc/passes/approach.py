@@ -165,6 +165,36 @@ def pinned_hands(
     ]
 
 
+def held_sites(
+    state: PoseState, segs: list[Segment], pinned: list[Goal], root: tuple[FloatArray, FloatArray]
+) -> list[Goal]:
+    """``pinned`` with each hand at its contact's site (where the hold pass keeps it on the
+    frames), for the solves that look for a pose when the first ones leave a reach short.
+
+    The approaches are solved before the contacts, so at the start of the other hand's reach
+    the keyframes leave a held hand at its approach point (8 cm off its handle): a trunk found
+    around that point left the hold pass an arm that could not reach the handle (132 mm off
+    on the frames, MT0511, tests/data/lean/l04 female P5). The first solves keep the point
+    where the hand is (what main did, so what already reached is unchanged)."""
+    from mtlc.passes.hold import ARM_HAND, hold_spans
+
+    t0 = segs[0].start
+    key = ("hold_spans", len(state.ir.segments))
+    spans = state.memo.get(key)
+    if spans is None:
+        spans = state.memo[key] = hold_spans(state.ir)
+    site: dict[str, FloatArray] = {}
+    for seg, end in spans:
+        hand = ARM_HAND[seg.track]
+        if not seg.start - 1e-9 <= t0 < end - 1e-9 or seg.goal.effector != hand:
+            continue
+        short = float(seg.result.get("distance", 0.0)) > TOLERANCE
+        if seg.goal.orientation is not None or short:
+            continue  # a contact solved short holds where it stopped
+        site[hand] = hand_target(state.ir, seg, root[1])
+    return [Goal(g.effector, position=site.get(g.effector, g.position)) for g in pinned]
+
+
 def pins_off(
     state: PoseState, pinned: list[Goal], q: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> float:
@@ -363,29 +393,38 @@ def _solve_group(
 
     def torso_pose(goals: list[Goal]) -> FloatArray | None:
         """The goals solved with the trunk, the pinned hands put back; None when they cannot
-        be (the trunk is then tried moving around them: they join the goals)."""
+        be (the trunk is then tried moving around them: they join the goals). When that
+        leaves a goal short, the least lean that meets them all with the held hands on their
+        sites (``held_pose``, ``held_sites``) is tried, and kept only if it meets them: a
+        reach is short only when no solve meets it, and a short one is what it was."""
         m = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
         qt = solved(ctx.cache, solve_ta, skel, goals, q0, m).q[0]
         if not pinned:
             return qt
         qt = repin(ctx, skel, qt[None], pinned, root)[0]
+        choice: FloatArray | None = None
         if pins_off(state, pinned, qt[None], root) <= TOLERANCE:
-            return qt
-        both = goals + list(pinned)
-        m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
-        qt = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
-        qt = repin(ctx, skel, qt, pinned, root)[0]
-        held = pins_off(state, pinned, qt[None], root) <= TOLERANCE
-        if held and goals_off(state, goals, qt, root) <= TOLERANCE:
-            return qt
-        # the descent stopped at a lean where the goals are not both met: the least lean
-        # that meets them, from several starts (``held_pose``), before giving the reach up
-        qh = held_pose(ctx, state, both, q0, root, [qt])
-        if pins_off(state, pinned, qh[None], root) <= TOLERANCE and (
-            not held or goals_off(state, goals, qh, root) < goals_off(state, goals, qt, root)
+            choice = qt
+        else:
+            both = goals + list(pinned)
+            m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
+            qb = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
+            qb = repin(ctx, skel, qb, pinned, root)[0]
+            if pins_off(state, pinned, qb[None], root) <= TOLERANCE:
+                choice = qb
+        if choice is not None and goals_off(state, goals, choice, root) <= TOLERANCE:
+            return choice
+        # the descents stopped at a lean where the goals are not all met
+        sites = held_sites(state, segs, pinned, root)
+        seeds = [qt] if choice is None else [choice, qt]
+        qh = held_pose(ctx, state, goals + sites, q0, root, seeds)
+        qh = repin(ctx, skel, qh[None], sites, root)[0]
+        if (
+            pins_off(state, sites, qh[None], root) <= TOLERANCE
+            and goals_off(state, goals, qh, root) <= TOLERANCE
         ):
             return qh
-        return qt if held else None
+        return choice
 
     def distances(qc: FloatArray) -> list[float]:
         return [

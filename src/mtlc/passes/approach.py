@@ -165,6 +165,36 @@ def pinned_hands(
     ]
 
 
+def held_sites(
+    state: PoseState, segs: list[Segment], pinned: list[Goal], root: tuple[FloatArray, FloatArray]
+) -> list[Goal]:
+    """``pinned`` with each hand at its contact's site (where the hold pass keeps it on the
+    frames), for the solves that look for a pose when the first ones leave a reach short.
+
+    The approaches are solved before the contacts, so at the start of the other hand's reach
+    the keyframes leave a held hand at its approach point (8 cm off its handle): a trunk found
+    around that point left the hold pass an arm that could not reach the handle (132 mm off
+    on the frames, MT0511, tests/data/lean/l04 female P5). The first solves keep the point
+    where the hand is (what main did, so what already reached is unchanged)."""
+    from mtlc.passes.hold import ARM_HAND, hold_spans
+
+    t0 = segs[0].start
+    key = ("hold_spans", len(state.ir.segments))
+    spans = state.memo.get(key)
+    if spans is None:
+        spans = state.memo[key] = hold_spans(state.ir)
+    site: dict[str, FloatArray] = {}
+    for seg, end in spans:
+        hand = ARM_HAND[seg.track]
+        if not seg.start - 1e-9 <= t0 < end - 1e-9 or seg.goal.effector != hand:
+            continue
+        short = float(seg.result.get("distance", 0.0)) > TOLERANCE
+        if seg.goal.orientation is not None or short:
+            continue  # a contact solved short holds where it stopped
+        site[hand] = hand_target(state.ir, seg, root[1])
+    return [Goal(g.effector, position=site.get(g.effector, g.position)) for g in pinned]
+
+
 def pins_off(
     state: PoseState, pinned: list[Goal], q: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> float:
@@ -182,6 +212,50 @@ def pins_off(
         at = np.asarray(site_positions(state.skel, pose, goal.effector))
         worst = max(worst, float(np.linalg.norm(at - np.asarray(goal.position), axis=-1).max()))
     return worst
+
+
+def goals_off(
+    state: PoseState, goals: list[Goal], q: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> float:
+    """How far (m) the farthest of the position ``goals`` is from its effector in pose ``q``."""
+    return max(
+        (hand_distance(state, g.effector, q, root, g.position) for g in goals
+         if g.position is not None),
+        default=0.0,
+    )  # fmt: skip
+
+
+def held_pose(
+    ctx: PassContext,
+    state: PoseState,
+    goals: list[Goal],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    seeds: list[FloatArray],
+) -> FloatArray:
+    """The least trunk lean meeting every goal (the reaching hands' and the held ones'), from
+    ``q0``, the upright trunk, ``seeds`` and random starts (``mtlc.body.ik.lean``), then the
+    held hands put back on their sites by their arms alone; once per compile for one question.
+
+    ``solve_ta``'s pull to upright fades as the error goes to 0, so its descent from the body
+    as it is stopped at a deep lean where both hands could not be met: the reach was reported
+    unreachable (MT0501) though poses that meet both goals exist."""
+    from mtlc.body.ik.lean import solve_held
+
+    if any(g.position is None or g.orientation is not None or g.aim is not None for g in goals):
+        return seeds[0] if seeds else q0  # (a position solve only: a tool's axis is not one)
+    store: dict[Any, FloatArray] = ctx.cache.setdefault("passes.approach.held", {})
+    key = (
+        tuple((g.effector, np.asarray(g.position, dtype=float).tobytes()) for g in goals),
+        q0.tobytes(), root[0].tobytes(), root[1].tobytes(),
+        tuple(np.asarray(s).tobytes() for s in seeds),
+    )  # fmt: skip
+    if key not in store:
+        res = solve_held(
+            state.skel, goals, q0, root_position=root[0], root_rotation=root[1], seeds=seeds
+        )
+        store[key] = res.q[0]
+    return store[key].copy()
 
 
 def with_pinned(
@@ -319,19 +393,38 @@ def _solve_group(
 
     def torso_pose(goals: list[Goal]) -> FloatArray | None:
         """The goals solved with the trunk, the pinned hands put back; None when they cannot
-        be (the trunk is then tried moving around them: they join the goals)."""
+        be (the trunk is then tried moving around them: they join the goals). When that
+        leaves a goal short, the least lean that meets them all with the held hands on their
+        sites (``held_pose``, ``held_sites``) is tried, and kept only if it meets them: a
+        reach is short only when no solve meets it, and a short one is what it was."""
         m = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
         qt = solved(ctx.cache, solve_ta, skel, goals, q0, m).q[0]
         if not pinned:
             return qt
         qt = repin(ctx, skel, qt[None], pinned, root)[0]
+        choice: FloatArray | None = None
         if pins_off(state, pinned, qt[None], root) <= TOLERANCE:
-            return qt
-        both = goals + list(pinned)
-        m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
-        qt = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
-        qt = repin(ctx, skel, qt, pinned, root)[0]
-        return qt if pins_off(state, pinned, qt[None], root) <= TOLERANCE else None
+            choice = qt
+        else:
+            both = goals + list(pinned)
+            m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
+            qb = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
+            qb = repin(ctx, skel, qb, pinned, root)[0]
+            if pins_off(state, pinned, qb[None], root) <= TOLERANCE:
+                choice = qb
+        if choice is not None and goals_off(state, goals, choice, root) <= TOLERANCE:
+            return choice
+        # the descents stopped at a lean where the goals are not all met
+        sites = held_sites(state, segs, pinned, root)
+        seeds = [qt] if choice is None else [choice, qt]
+        qh = held_pose(ctx, state, goals + sites, q0, root, seeds)
+        qh = repin(ctx, skel, qh[None], sites, root)[0]
+        if (
+            pins_off(state, sites, qh[None], root) <= TOLERANCE
+            and goals_off(state, goals, qh, root) <= TOLERANCE
+        ):
+            return qh
+        return choice
 
     def distances(qc: FloatArray) -> list[float]:
         return [

@@ -28,6 +28,8 @@ from mtlc.passes.approach import (
     _restaters,
     groups,
     hand_target,
+    held_pose,
+    held_sites,
     model_for,
     own_names,
     pinned_hands,
@@ -181,6 +183,17 @@ def best_path(
             path, reach, dist = p, r, d
         if dist[-1].max() <= TOLERANCE:
             break
+    if pinned and dist[-1].max() > TOLERANCE:
+        # every descent stopped short at a deep lean: the least lean that meets the site and
+        # the held hands on their sites (``approach.held_pose``, ``held_sites``), before the
+        # reach is called unreachable
+        sites = held_sites(state, segs, pinned, root)
+        q_least = held_pose(ctx, state, goals + sites, q0, root, [q_held, path[-1]])
+        p = repin(ctx, skel, q0[None] + steps * (q_least - q0)[None], sites, root)
+        if pins_off(state, sites, p, root) <= TOLERANCE:
+            p, d = above_ground(state, p, _distances(skel, p, effs, targets, root), effs, root)
+            if d[-1].max() <= TOLERANCE:  # kept only when it meets them: else as it was
+                path, reach, dist = p, "torso", d
     return path, reach, dist
 
 

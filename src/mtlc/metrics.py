@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mtlc.body import forward, site_positions
+from mtlc.body.kinematics import repeated_rows
 from mtlc.ir.model import MotionIR
 from mtlc.loads import carried_com
 
@@ -122,6 +123,11 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     used = ok.any(axis=0)
     if used.sum() >= 3 and not used.all():
         pts, ok = pts[:, used], ok[:, used]
+    runs = repeated_rows(pts, ok)
+    if runs is not None:  # a run of identical frames (a hold) has one hull: found once
+        heads, at = runs
+        h = grouped_hull(pts[heads], ok[heads])  # the same points used: the rows are these
+        return Hull(h.a[at], h.d[at], h.safe[at], h.edge[at], h.orient[at], pts, ok)
     n = len(pts)
     ii, jj = np.triu_indices(ok.shape[1], 1)
     # frames grouped by their set of touching points, a bit each in one int (``np.unique`` of

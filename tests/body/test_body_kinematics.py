@@ -321,3 +321,59 @@ def test_com_jacobian_of_some_dofs_is_their_columns_of_the_whole_to_the_bit() ->
             )
     with pytest.raises(ValueError):
         com_jacobian(SK, forward(SK, SK.q_comfort), root=True, dofs=dofs)
+
+
+@settings(max_examples=40)
+@given(
+    runs=st.lists(st.integers(1, 40), min_size=1, max_size=30),
+    with_axes=st.booleans(),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_repeated_rows_are_posed_once_to_the_bit(
+    runs: list[int], with_axes: bool, seed: int
+) -> None:
+    """A batch with runs of identical rows (a hold) is posed once per run (``repeated_rows``):
+    every output, whole body, part and sites, is bit for bit what posing every row gives, a
+    -0.0 angle kept apart from a 0.0."""
+    import mtlc.body.kinematics as kin
+
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(SK.lower, SK.upper, size=(len(runs), SK.n_dofs))
+    q[rng.random(len(runs)) < 0.3, 0] = 0.0
+    q[rng.random(len(runs)) < 0.3, 0] = -0.0
+    root = rng.normal(size=(len(runs), 3)), rng.normal(size=(len(runs), 4))
+    at = np.repeat(np.arange(len(runs)), runs)
+    q, root = q[at], (root[0][at], root[1][at])
+    sites = ["r_hand", "l_toe"]
+
+    def every(q: np.ndarray, root: tuple[np.ndarray, np.ndarray]) -> list[np.ndarray]:
+        pose = forward(SK, q, *root, with_axes=with_axes)
+        part = forward_part(SK, q, *root, sites)
+        return [pose.R, pose.p, pose.axes, part.R, part.p,
+                part_site_positions(SK, q, *root, sites)]  # fmt: skip
+
+    got = every(q, root)
+    saved = kin.REPEAT_MIN_ROWS
+    kin.REPEAT_MIN_ROWS = 10**9  # every row posed
+    try:
+        want = every(q, root)
+    finally:
+        kin.REPEAT_MIN_ROWS = saved
+    for a, b in zip(got, want, strict=True):
+        assert a.shape == b.shape and a.tobytes() == b.tobytes()
+    found = kin.repeated_rows(q, *root)
+    if len(q) >= kin.REPEAT_MIN_ROWS and found is not None:
+        heads, which = found
+        assert np.array_equal(q[heads][which], q) and len(heads) < len(q)
+
+
+def test_repeated_rows_tells_minus_zero_and_nan_apart() -> None:
+    from mtlc.body.kinematics import repeated_rows
+
+    a = np.zeros((200, 2))
+    a[100:, 1] = -0.0
+    a[150:, 0] = np.nan
+    heads, at = repeated_rows(a)  # type: ignore[misc]
+    assert heads.tolist() == [0, 100, 150] and at[99] == 0 and at[100] == 1 and at[-1] == 2
+    assert repeated_rows(np.arange(200.0)) is None  # no repeats: nothing to gain
+    assert repeated_rows(a[:10]) is None  # a solver's small batch: not looked at

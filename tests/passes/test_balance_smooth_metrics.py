@@ -126,6 +126,31 @@ def test_the_grouped_hull_gives_the_margins_of_the_plain_one(
     assert np.array_equal(np.isnan(got), np.isnan(want))
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), runs=st.lists(st.integers(1, 30), min_size=1, max_size=12))
+def test_the_grouped_hull_of_repeated_frames_is_found_once_to_the_bit(
+    seed: int, runs: list[int]
+) -> None:
+    """Runs of identical frames (a hold) take their run's first frame's hull: the margins are
+    bit for bit those of every frame's own hull, however many frames the batch holds."""
+    import mtlc.body.kinematics as kin
+    from mtlc.metrics import grouped_hull, hull_margin
+
+    rng = np.random.default_rng(seed)
+    at = np.repeat(np.arange(len(runs)), runs)
+    pts = rng.uniform(-0.3, 0.3, (len(runs), 22, 2))[at]
+    ok = (rng.random((len(runs), 22)) < 0.5)[at]
+    com = rng.uniform(-0.4, 0.4, (len(at), 2))
+    got = hull_margin(grouped_hull(pts, ok), com)
+    saved = kin.REPEAT_MIN_ROWS
+    kin.REPEAT_MIN_ROWS = 10**9  # every frame's hull
+    try:
+        want = hull_margin(grouped_hull(pts, ok), com)
+    finally:
+        kin.REPEAT_MIN_ROWS = saved
+    assert got.tobytes() == want.tobytes()
+
+
 def one_legged(n: int, lift_deg: float = 20.0) -> Frames:
     """Standing on the right foot: the left leg abducted, its sole off the ground."""
     f = standing(n)
@@ -750,3 +775,32 @@ def test_the_grouped_hull_forms_pairs_per_group_to_the_bit(
     assert np.array_equal(hull_margin(got, com), hull_margin(want, com), equal_nan=True)
     push_got = support_push(pts, ok, com, 0.01, got)
     assert np.array_equal(push_got, support_push(pts, ok, com, 0.01, want), equal_nan=True)
+
+
+def test_balancing_a_hold_measures_each_run_of_frames_once_to_the_bit() -> None:
+    """A hold is thousands of copies of one frame: balance measures a run of frames alike in
+    pose, stance and resting hands once (``repeated_rows``), and every corrected frame, margin
+    and failure is bit for bit what measuring each frame gives."""
+    import mtlc.body.kinematics as kin
+
+    f = standing(300)
+    for a, deg in ((0, 0.0), (90, 20.0), (200, 12.0), (201, 14.0)):  # three holds, one step
+        f.q[a:, SKEL.dof_index("l_hip_abd")] = math.radians(deg)
+    f.q[150:160, SKEL.dof_index("r_shoulder_flex")] = -0.0  # -0.0 is not 0.0 to the bits
+
+    def balanced() -> list[np.ndarray]:
+        g = Frames(f.fps, f.time.copy(), f.root_position.copy(), f.root_rotation.copy(),
+                   f.q.copy())  # fmt: skip
+        out = balance.balance_frames(make_ir(g), g)
+        return [g.q, g.root_position, *out]
+
+    got = balanced()
+    saved = kin.REPEAT_MIN_ROWS
+    kin.REPEAT_MIN_ROWS = 10**9  # every frame measured
+    try:
+        want = balanced()
+    finally:
+        kin.REPEAT_MIN_ROWS = saved
+    assert not np.array_equal(got[1], f.root_position)  # the one-legged holds were corrected
+    for a, b in zip(got, want, strict=True):
+        assert a.tobytes() == b.tobytes()

@@ -318,14 +318,43 @@ def forward(
     n, nj = math.prod(batch), skel.n_joints  # (np.prod of a tuple: 3 µs a call)
     qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
     nd = skel.n_dofs if with_axes else 0
-    R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, nd, 3))
-    for a in range(0, n, FK_CHUNK):
-        c = slice(a, a + FK_CHUNK)
-        R[c], p[c], axes[c] = _forward_flat(skel, qf[c], rpf[c], RRf[c], with_axes)
+    runs = repeated_rows(qf, rpf, RRf)
+    if runs is not None:  # each run of identical rows posed once (a hold: one pose a minute)
+        heads, at = runs
+        one = forward(skel, qf[heads], rpf[heads], RRf[heads], with_axes=with_axes)
+        R, p, axes = one.R[at], one.p[at], one.axes[at]
+    else:
+        R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, nd, 3))
+        for a in range(0, n, FK_CHUNK):
+            c = slice(a, a + FK_CHUNK)
+            R[c], p[c], axes[c] = _forward_flat(skel, qf[c], rpf[c], RRf[c], with_axes)
     return Pose(
         R=R.reshape(*batch, nj, 3, 3), p=p.reshape(*batch, nj, 3),
         axes=axes.reshape(*batch, nd, 3), root=np.array(rp),
     )  # fmt: skip
+
+
+REPEAT_MIN_ROWS = 64  # batches from which repeated rows are looked for (a solver's are smaller)
+
+
+def repeated_rows(*columns: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
+    """Runs of consecutive rows equal bit for bit in every one of ``columns`` (each (n, ...)):
+    the first row of each run and, for each row, its run's number; None for a small batch or
+    one with few repeats. The kinematics of a row do not depend on the rows batched with it
+    (tests/body/test_body_kinematics.py), so a run's first row gives every row's numbers: a
+    held posture is thousands of copies of one frame, posed once."""
+    n = len(columns[0])
+    if n < REPEAT_MIN_ROWS or any(np.ndim(c) == 0 or len(c) != n for c in columns):
+        return None
+    same = np.ones(n - 1, dtype=bool)
+    for col in columns:
+        bits = np.ascontiguousarray(col).reshape(n, -1)
+        bits = bits.view(np.int64 if bits.dtype.itemsize == 8 else np.uint8)  # -0.0 is not 0.0
+        same &= (bits[1:] == bits[:-1]).all(axis=1)
+    if np.count_nonzero(same) < n // 8:
+        return None
+    head = np.concatenate([[True], ~same])
+    return np.flatnonzero(head), np.cumsum(head) - 1
 
 
 def _forward_flat(
@@ -389,6 +418,14 @@ def forward_part(
     rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
     n, nj = math.prod(batch), skel.n_joints
     qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
+    runs = repeated_rows(qf, rpf, RRf)
+    if runs is not None:  # each run of identical rows posed once (``repeated_rows``)
+        heads, at = runs
+        one = forward_part(skel, qf[heads], rpf[heads], RRf[heads], sites)
+        return Pose(
+            R=one.R[at].reshape(*batch, nj, 3, 3), p=one.p[at].reshape(*batch, nj, 3),
+            axes=np.empty((*batch, 0, 3)), root=np.array(rp),
+        )  # fmt: skip
     part = _part(skel, tuple(sites))
     R, p = np.full((n, nj, 3, 3), np.nan), np.full((n, nj, 3), np.nan)
     for a in range(0, n, PART_CHUNK):
@@ -414,6 +451,10 @@ def part_site_positions(
     qa = np.asarray(q, dtype=float)
     n = len(qa)
     rp, RR = _root_inputs(skel, (n,), root_position, root_rotation)
+    runs = repeated_rows(qa, rp, RR)
+    if runs is not None:  # each run of identical rows posed once (``repeated_rows``)
+        heads, at = runs
+        return part_site_positions(skel, qa[heads], rp[heads], RR[heads], sites)[at]
     part = _part(skel, tuple(sites))
     where = {int(j): k for k, j in enumerate(part.joints)}
     js, offs = _site_lookup(skel, tuple(sites))

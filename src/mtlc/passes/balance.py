@@ -51,7 +51,7 @@ from mtlc.body import (
     site_rotation,
 )
 from mtlc.body.ik import Goal, prepare, solve_ta
-from mtlc.body.kinematics import rotate_about
+from mtlc.body.kinematics import repeated_rows, rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import Held, carried_com, held
 from mtlc.metrics import (
@@ -648,19 +648,28 @@ def _support_state(
     the held tools and loads) and support points as ``support`` gives them."""
     skel = ir.skeleton
     t = frames.time[idx]
+    q, root, rotation = frames.q[idx], frames.root_position[idx], frames.root_rotation[idx]
     # no dof axes: nothing measured or corrected from this pose needs a Jacobian (half the cost)
-    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx],
-                   with_axes=False)  # fmt: skip
-    into.contact[idx] = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
+    pose = forward(skel, q, root, rotation, with_axes=False)
     rest = hand_contacts(ir, t, pose, segs.rests)
-    pts, ok = support(skel, pose, stance[idx], ir.ground, rest)
+    # a run of frames alike in pose, stance and resting hands (a hold) is measured once: each
+    # row's numbers depend on that row alone (tests/passes/test_balance_smooth_metrics.py)
+    runs = repeated_rows(q, root, rotation, stance[idx], rest)
+    at: slice | np.ndarray = slice(None)
+    one, one_stance, one_rest = pose, stance[idx], rest
+    if runs is not None:
+        heads, at = runs
+        one, one_stance, one_rest = take_pose(pose, heads), one_stance[heads], rest[heads]
+    into.contact[idx] = contact_mask(foot_points(skel, one), one_stance, ir.ground)[at]
+    pts, ok = support(skel, one, one_stance, ir.ground, one_rest)
+    pts, ok = pts[at], ok[at]
     into.pts[idx], into.ok[idx] = pts, ok
     for k, name in enumerate(FEET_SITES):
-        into.feet[idx, k] = site_positions(skel, pose, name)
-        into.feet_rotation[idx, k] = site_rotation(skel, pose, name)
+        into.feet[idx, k] = site_positions(skel, one, name)[at]
+        into.feet_rotation[idx, k] = site_rotation(skel, one, name)[at]
     for k, name in enumerate(HANDS):
-        into.hands[idx, k] = site_positions(skel, pose, name)
-    into.lowest[idx] = lowest_point(skel, pose)
+        into.hands[idx, k] = site_positions(skel, one, name)[at]
+    into.lowest[idx] = lowest_point(skel, one)[at]
     return pose, carried_com(ir, pose, t, segs.holding), pts, ok
 
 

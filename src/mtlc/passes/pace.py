@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import forward, part_site_positions
+from mtlc.body import forward, part_site_positions, site_positions
 from mtlc.body.capsules import limbs_of_sides, self_intersection
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
@@ -223,12 +223,17 @@ def _frames_at(frames: Frames, times: FloatArray, q: FloatArray | None = None) -
     return Frames(0.0, times, at(frames.root_position), rotation, at(frames.q) if q is None else q)
 
 
-def progress(ir: MotionIR, m: Movement, frames: Frames) -> tuple[FloatArray, float]:
+def progress(
+    ir: MotionIR, m: Movement, frames: Frames, at: FloatArray | None = None
+) -> tuple[FloatArray, float]:
     """Each sample's share of the movement's progress (rising from 0 to 1) and its length: the
-    effectors' arc length plus ``JOINT_WEIGHT`` times the movement's joint path."""
+    effectors' arc length plus ``JOINT_WEIGHT`` times the movement's joint path. ``at``: the
+    effectors' positions (N, E, 3) at the samples, if already known (``approach_depth``)."""
     skel = ir.skeleton
     # the effectors' chains only (7 joints of 21 for a hand): the same numbers as a whole pose
-    p = part_site_positions(skel, frames.q, frames.root_position, frames.root_rotation, m.effectors)
+    p = at if at is not None else part_site_positions(
+        skel, frames.q, frames.root_position, frames.root_rotation, m.effectors
+    )  # fmt: skip
     idx = [skel.dof_index(n) for n in m.dofs]
     step = np.linalg.norm(np.diff(p, axis=0), axis=-1).sum(axis=1)
     step += JOINT_WEIGHT * np.linalg.norm(np.diff(frames.q[:, idx], axis=0), axis=1)
@@ -249,21 +254,28 @@ class ReachPath:
         return pchip(self.progress, self.q)(s)
 
 
-def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> float:
+def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> tuple[float, FloatArray]:
     """How far (m) the movement's effectors go behind their sites' surfaces (within
     ``NORMAL_BAND`` of the normal line), their hands' fingertips below the ground, or its arms'
     forearms and hands into the trunk or a thigh: what a wider smoothing must not make worse
     (the approach comes in from the site's side; a corner cut short took a forearm 56 mm into
-    a thigh on the fuel filter, male P99)."""
+    a thigh on the fuel filter, male P99). And the effectors' positions (N, E, 3), what
+    ``progress`` measures."""
     skel = ir.skeleton
     effectors = m.effectors
     names = effectors + [FINGERTIPS[e] for e in effectors if e in FINGERTIPS]
-    p = part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)
-    deepest = max(0.0, ir.ground - float(p[..., 1].min()))
-    # only the moving arms' limbs are measured (and the body posed only if there are any)
+    # only the moving arms' limbs are measured (and the body posed only if there are any);
+    # the sites from that pose are ``part_site_positions``' numbers, bit for bit
+    # (tests/body/test_body_kinematics.py): the arms' chains are not posed a second time
     mine = limbs_of_sides({e[0] for e in effectors})
+    pose = None
     if mine:
         pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
+        p = site_positions(skel, pose, names)
+    else:
+        p = part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)
+    deepest = max(0.0, ir.ground - float(p[..., 1].min()))
+    if pose is not None:
         deepest = max(deepest, float(self_intersection(skel, pose, mine)[0].max()))
     for seg in m.segments:
         normal = seg.goal.params.get("approach_normal") or seg.goal.params.get("normal")
@@ -276,7 +288,7 @@ def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> float:
         near = np.linalg.norm(rel - d[:, None] * n, axis=1) < NORMAL_BAND
         if near.any():
             deepest = max(deepest, -float(d[near].min()))
-    return deepest
+    return deepest, p[:, : len(effectors)]
 
 
 def _smoothed(
@@ -445,15 +457,17 @@ def reach_path(
         u2, _ = progress(ir, m, chosen)
         return ReachPath(u2, chosen.q[:, idx], carried=True)
     chosen = _smoothed(ir, m, body, idx, held, SMOOTH_SIGMA)
-    allowed = approach_depth(ir, m, chosen) + APPROACH_SPARE
+    allowed, at = approach_depth(ir, m, chosen)
+    allowed += APPROACH_SPARE
     # a part in both hands keeps 10 %: smoothed wider after it is made rigid, the correction
     # is undone (tests/data/arms a02's box squeezed by 83 mm, male P99)
     for sigma in () if held else SMOOTH_SIGMAS:
         wider = _smoothed(ir, m, body, idx, held, sigma)
-        if approach_depth(ir, m, wider) <= allowed:
-            chosen = wider
+        depth, at_wider = approach_depth(ir, m, wider)
+        if depth <= allowed:
+            chosen, at = wider, at_wider
             break
-    u2, _ = progress(ir, m, chosen)
+    u2, _ = progress(ir, m, chosen, at)
     return ReachPath(u2, chosen.q[:, idx])
 
 

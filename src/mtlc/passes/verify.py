@@ -36,7 +36,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.body.capsules import capsule_segments, collision_capsules, self_intersection
-from mtlc.body.kinematics import Pose
+from mtlc.body.kinematics import Pose, repeated_rows
 from mtlc.geometry.clearance import FrameClearance, frame_clearance, held_capsules, scene_pieces
 from mtlc.geometry.held import HeldPart, held_parts
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
@@ -657,7 +657,15 @@ class _Verifier:
 
     def body(self) -> None:
         """Hands and forearms outside the trunk and the thighs (``mtlc.body.capsules``)."""
-        depth, pairs = self_intersection(self.skel, self.pose)
+        f = self.ir.frames
+        assert f is not None
+        runs = repeated_rows(f.q, f.root_position, f.root_rotation)
+        if runs is None:
+            depth, pairs = self_intersection(self.skel, self.pose)
+        else:  # a run of identical frames (a hold) is as deep as its first (the same numbers)
+            heads, at = runs
+            depth, pairs = self_intersection(self.skel, take_pose(self.pose, heads))
+            depth = depth[at]
         per_frame = depth.max(axis=1)
         self.v.intersection_frames = per_frame
         k = int(np.argmax(per_frame))

@@ -50,6 +50,7 @@ from ..kinematics import (
     dof_world_axes,
     forward,
     forward_below,
+    repeated_rows,
     rotate_about,
     site_positions,
 )
@@ -135,7 +136,13 @@ def penetration(
 def penetrations(
     skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
 ) -> dict[str, FloatArray]:
-    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q``."""
+    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q``; a run
+    of identical frames (a hold) is measured once (``repeated_rows``)."""
+    runs = repeated_rows(q, root[0], root[1])
+    if runs is not None:
+        heads, at = runs
+        once = penetrations(skel, q[heads], (root[0][heads], root[1][heads]), sides)
+        return {side: depth[at] for side, depth in once.items()}
     pose = forward(skel, q, root[0], root[1], with_axes=False)
     return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
 

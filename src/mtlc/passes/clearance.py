@@ -129,6 +129,20 @@ def without_swings(q: FloatArray, correction: FloatArray) -> FloatArray:
     return out
 
 
+def swings_ramped(skel: Skeleton, q: FloatArray, solved: FloatArray) -> FloatArray:
+    """``solved`` with ``without_swings`` applied to its correction of ``q``: the frames whose
+    correction it changed posed again, every other frame ``solved`` itself, to the bit. Adding
+    a correction back (``q + (solved - q)``) is ``solved`` only to the last bit, and which frames
+    the next step solves again was decided by exact equality: a different BLAS build's last
+    bits re-solved other frames and turned the access panel's last left-arm pose 1.3 deg."""
+    correction = solved - q
+    ramped = without_swings(q, correction)
+    changed = (ramped != correction).any(axis=1)
+    out = np.array(solved, dtype=float)
+    out[changed] = skel.clip(q[changed] + ramped[changed])
+    return out
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     if frames is None or not len(frames.time):
@@ -144,7 +158,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         q = frames.q
         cleared = keep_clear(skel, q, root, side, keep, firm=FIRM, inside=inside[side])
         cleared = reseeded(skel, q, cleared, root, side, keep, frames.time, inside[side])
-        smooth = skel.clip(q + without_swings(q, cleared - q))
+        smooth = swings_ramped(skel, q, cleared)
         if np.array_equal(smooth, cleared):
             result = cleared
         else:
@@ -155,7 +169,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             again = keep_clear(
                 skel, q, root, side, keep, start=smooth, firm=FIRM, inside=from_smooth
             )
-            result = skel.clip(q + without_swings(q, again - q))
+            result = swings_ramped(skel, q, again)
         # the correction's ends ramped no faster than a person turns a joint, where the hand
         # is free (a held hand keeps its own correction: it stays on its goal)
         widened = speed_limited(q, result - q, skel.lower, skel.upper, frames.time,

@@ -69,6 +69,7 @@ def track(times: ArrayLike, values: ArrayLike, grid: np.ndarray) -> np.ndarray:
 EVAL_CHUNK = 4096  # samples of a curve evaluated at once
 CHUNK_FRAMES = 4096  # frames whose pose is computed at once by the base correction
 HOLD_EPS = 1e-3  # seconds: a held value turns into the next segment's first keyframe this fast
+SAME_INSTANT = 1e-6  # seconds: keys of two segments closer than this are at one instant
 
 
 def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
@@ -113,12 +114,22 @@ def _held_curve(
     # to the nanosecond: two segments' keys at one instant, computed two ways (a gaze part's
     # end, rounded, and the next look's start), must sort by segment, not by a 4e-10 s
     # difference that put a hold of the older value just before the later key (issue 19)
+    # Rounding alone is not enough: two times 4e-10 s apart can round to two neighbouring
+    # nanoseconds (a reach's first key, which the pace pass rounds, and the posture's last key
+    # before it, both warped by the joint-speed pass), and the reach's first key then sorted
+    # first and held the posture's *previous* key: the trunk of a squat jumped 20 deg at the
+    # reach's start and the hand made two movements (bench/procedures shelf_latches_valve, male
+    # P95). Keys closer than ``SAME_INSTANT`` are one instant, ordered by segment.
     t = np.round(np.concatenate([p[0] for p in parts]), 9)
     order = np.concatenate([np.full(len(p[0]), p[1]) for p in parts])
     v = np.concatenate([np.asarray(p[2], dtype=float) for p in parts])
     first = np.concatenate([np.arange(len(p[0])) == 0 for p in parts])
-    by = np.lexsort((order, t))
+    by = np.argsort(t, kind="stable")
+    t, order, v, first = t[by], order[by], v[by], first[by]
+    instant = np.concatenate([[0], np.cumsum(np.diff(t) > SAME_INSTANT)])
+    by = np.lexsort((order, instant))
     t, v, first = t[by], v[by], first[by]
+    t = np.maximum.accumulate(t)  # one instant's keys at its latest time
     before_t = np.concatenate([[0.0], t[:-1]])
     before_v = np.concatenate([[rest], v[:-1]])
     hold = first & (t - before_t > 2 * HOLD_EPS)  # hold until the next segment takes over

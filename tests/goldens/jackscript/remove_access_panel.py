@@ -2213,7 +2213,7 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(45.7, {
         'right_shoulder': (59.0, 2.412, 11.364), 'right_elbow': (27.744, 18.467),
-        'right_wrist': (-0.387, -16.411),
+        'right_wrist': (-0.388, -16.418),
     })
     human.KeyJoints(45.8, {
         'right_shoulder': (56.195, 1.8, 4.209), 'right_elbow': (36.653, 38.067),
@@ -2708,8 +2708,8 @@ def remove_access_panel():
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.852, 15.313, 60.145), 'left_elbow': (105.447, 9.018),
-        'left_wrist': (-70.0, 8.07), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-1.301, 14.844, 59.3), 'left_elbow': (104.816, 10.015),
+        'left_wrist': (-70.0, 9.284), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -2686,22 +2686,19 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.6, {
         'right_shoulder': (-37.767, 0.321, 11.592), 'right_elbow': (110.546, 26.668),
-        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.486, 9.016, 57.09),
-        'left_elbow': (103.623, 5.619), 'left_wrist': (-70.0, 4.724),
+        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.268, 8.749, 56.581),
+        'left_elbow': (102.764, 6.999), 'left_wrist': (-70.0, 6.317),
     })
     human.KeyJoints(53.7, {
         'right_shoulder': (-40.293, -1.555, 14.427), 'right_elbow': (110.616, 26.535),
-        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-1.58, 14.477, 59.192),
-        'left_elbow': (105.854, 8.16), 'left_wrist': (-69.987, 7.3),
+        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-2.258, 13.713, 57.737),
+        'left_elbow': (104.407, 10.547), 'left_wrist': (-70.0, 9.981),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.730065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=53.730065, duration=0.072)
-    human.KeyJoints(53.8, {
-        'left_shoulder': (-0.994, 15.174, 59.97), 'left_elbow': (105.521, 8.889),
-        'left_wrist': (-70.0, 7.942),
-    })
+    human.KeyJoints(53.8, {'left_shoulder': (-1.409, 14.735, 59.154)})
     human.KeyRoot(53.802065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(53.802065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),

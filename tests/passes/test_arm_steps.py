@@ -35,13 +35,9 @@ TURN_STEP = 20.0  # deg: the wrist and forearm inside a fastener turn
 
 # (procedure, manikin) whose arm still steps further, and why; strict: a fix makes them pass
 # and the entry goes. None left since the joint_speed pass (the strokes' and reaches' time from
-# what their joints need) and the speed-limited corrections of balance and clearance.
-KNOWN: dict[tuple[str, str], str] = {
-    ("a03_awkward_turns", "female-p99"): (
-        "clearance: the left wrist's correction steps 20.4 deg at 4.27 s (MAX_SWING lets a "
-        "corrected dof move 0.6 rad a dense frame); the turn's new timing (i-proc19) put it there"
-    ),
-}
+# what their joints need), the speed-limited corrections of balance and clearance, and the
+# two envelopes of speed_limited clamped where their signs overlap (a03 female P99's wrist).
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 def compile_for(path: Path, manikin: ManikinSpec) -> MotionIR:

@@ -327,9 +327,52 @@ def speed_limited(
     lo, hi = lo[:, cols], hi[:, cols]
     keep = np.zeros(len(q), dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
     envelopes(up, down, lo, hi, keep)
+    both = up + down
+    # each part keeps its slope, their sum need not: a correction that changes sign within a
+    # ramp's reach (a per-frame solve, +9 deg one frame, -1 the next) took both, 6.5 deg a
+    # dense frame where 5.5 were allowed (the fuel filter male P99's left shoulder, issue 19)
+    step_of = np.diff(both, axis=0)
+    if (step_of < lo - 1e-9).any() or (step_of > hi + 1e-9).any():
+        clamped(both, lo, hi, keep)
     out = done.copy()
-    out[:, cols] = np.clip(q[:, cols] + up + down, lower[cols], upper[cols]) - q[:, cols]
+    out[:, cols] = np.clip(q[:, cols] + both, lower[cols], upper[cols]) - q[:, cols]
     return out
+
+
+def clamped(c: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray) -> None:
+    """``c`` (N, D) with each change between frames brought within ``[lo, hi]``, in place:
+    forward, a frame not ``keep`` goes at most the allowed change from its predecessor; then
+    back, a frame not ``keep`` at most the allowed change from its successor (a ``keep`` frame
+    the forward sweep could not reach). For the rows where ``speed_limited``'s two envelopes
+    overlap with opposite signs: the correction gives back there what the other sign would
+    take, no more. Only the rows from the first violation on are visited, until nothing
+    changes past the last one."""
+    n = len(c)
+
+    def violations() -> IntArray:
+        change = np.diff(c, axis=0)
+        return np.flatnonzero(((change < lo - 1e-9) | (change > hi + 1e-9)).any(axis=1))
+
+    bad = violations()
+    if bad.size == 0:
+        return
+    for i in range(int(bad[0]), n - 1):  # forward: row i + 1 from row i
+        if keep[i + 1]:
+            continue
+        new = np.clip(c[i + 1], c[i] + lo[i], c[i] + hi[i])
+        if i > bad[-1] and np.array_equal(new, c[i + 1]):
+            break
+        c[i + 1] = new
+    bad = violations()
+    if bad.size == 0:
+        return
+    for i in range(int(bad[-1]), -1, -1):  # back: row i from row i + 1
+        if keep[i]:
+            continue
+        new = np.clip(c[i], c[i + 1] - hi[i], c[i + 1] - lo[i])
+        if i < bad[0] and np.array_equal(new, c[i]):
+            break
+        c[i] = new
 
 
 def envelopes(

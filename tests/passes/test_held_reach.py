@@ -10,7 +10,6 @@ solve (``solve_ta`` from 48 random poses, with restarts) of the same two goals.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.hold import hold_spans
+from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "lean"
@@ -37,7 +37,7 @@ def compile_file(path: Path, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSi
     program = run_frontend([path])
     assert not program.sink.has_errors, [d.message for d in program.sink.items]
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions()), sink
 

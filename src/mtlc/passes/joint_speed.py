@@ -331,8 +331,11 @@ def speed_limited(
     # each part keeps its slope, their sum need not: a correction that changes sign within a
     # ramp's reach (a per-frame solve, +9 deg one frame, -1 the next) took both, 6.5 deg a
     # dense frame where 5.5 were allowed (the fuel filter male P99's left shoulder, issue 19)
+    # (a step into or out of a held frame is the held hand's own: neither part ramps it, and
+    # the correction before it is not made smaller for it)
+    free = ~(keep[:-1] | keep[1:])[:, None]
     step_of = np.diff(both, axis=0)
-    if (step_of < lo - 1e-9).any() or (step_of > hi + 1e-9).any():
+    if (free & ((step_of < lo - 1e-9) | (step_of > hi + 1e-9))).any():
         clamped(both, lo, hi, keep)
     out = done.copy()
     out[:, cols] = np.clip(q[:, cols] + both, lower[cols], upper[cols]) - q[:, cols]
@@ -342,16 +345,19 @@ def speed_limited(
 def clamped(c: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray) -> None:
     """``c`` (N, D) with each change between frames brought within ``[lo, hi]``, in place:
     forward, a frame not ``keep`` goes at most the allowed change from its predecessor; then
-    back, a frame not ``keep`` at most the allowed change from its successor (a ``keep`` frame
-    the forward sweep could not reach). For the rows where ``speed_limited``'s two envelopes
+    back, a frame not ``keep`` at most the allowed change from its successor; a step into or out
+    of a ``keep`` frame is left as it is (the held hand's own). For the rows where ``speed_limited``'s two envelopes
     overlap with opposite signs: the correction gives back there what the other sign would
     take, no more. Only the rows from the first violation on are visited, until nothing
     changes past the last one."""
     n = len(c)
 
+    free = ~(keep[:-1] | keep[1:])
+
     def violations() -> IntArray:
         change = np.diff(c, axis=0)
-        return np.flatnonzero(((change < lo - 1e-9) | (change > hi + 1e-9)).any(axis=1))
+        bad = ((change < lo - 1e-9) | (change > hi + 1e-9)).any(axis=1)
+        return np.flatnonzero(bad & free)
 
     bad = violations()
     if bad.size == 0:
@@ -367,7 +373,7 @@ def clamped(c: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray) -> 
     if bad.size == 0:
         return
     for i in range(int(bad[-1]), -1, -1):  # back: row i from row i + 1
-        if keep[i]:
+        if keep[i] or keep[i + 1]:
             continue
         new = np.clip(c[i], c[i + 1] - hi[i], c[i + 1] - lo[i])
         if i < bad[0] and np.array_equal(new, c[i]):

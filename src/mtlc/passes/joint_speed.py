@@ -331,12 +331,7 @@ def speed_limited(
     # each part keeps its slope, their sum need not: a correction that changes sign within a
     # ramp's reach (a per-frame solve, +9 deg one frame, -1 the next) took both, 6.5 deg a
     # dense frame where 5.5 were allowed (the fuel filter male P99's left shoulder, issue 19)
-    # (a step into or out of a held frame is the held hand's own: neither part ramps it, and
-    # the correction before it is not made smaller for it)
-    free = ~(keep[:-1] | keep[1:])[:, None]
-    step_of = np.diff(both, axis=0)
-    if (free & ((step_of < lo - 1e-9) | (step_of > hi + 1e-9))).any():
-        clamped(both, lo, hi, keep)
+    clamped(both, lo, hi, keep)  # (returns at once where the sum keeps the speed)
     out = done.copy()
     out[:, cols] = np.clip(q[:, cols] + both, lower[cols], upper[cols]) - q[:, cols]
     return out
@@ -346,12 +341,12 @@ def clamped(c: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray) -> 
     """``c`` (N, D) with each change between frames brought within ``[lo, hi]``, in place:
     forward, a frame not ``keep`` goes at most the allowed change from its predecessor; then
     back, a frame not ``keep`` at most the allowed change from its successor; a step into or out
-    of a ``keep`` frame is left as it is (the held hand's own). For the rows where ``speed_limited``'s two envelopes
-    overlap with opposite signs: the correction gives back there what the other sign would
+    of a ``keep`` frame is left as it is (the held hand's own: the correction before it is not
+    made smaller for it). For the rows where ``speed_limited``'s two envelopes overlap with
+    opposite signs: the correction gives back there what the other sign would
     take, no more. Only the rows from the first violation on are visited, until nothing
     changes past the last one."""
     n = len(c)
-
     free = ~(keep[:-1] | keep[1:])
 
     def violations() -> IntArray:

@@ -336,6 +336,7 @@ def _solve_keys(
 
     def solved(start: FloatArray, reach: str) -> tuple[FloatArray, FloatArray]:
         q = _chain(state, sites, hands, tips, start, root, reach)
+        assert q is not None  # (only a chain ``until_short`` stops)
         q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
         q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, reach, clock[1:])
         return q, _errors(state, q, root, sites, [hands, tips])
@@ -357,7 +358,10 @@ def _solve_keys(
         idx = state.skel.dofs_of_joints(TRUNK_JOINTS)
 
         def reaches(t: FloatArray) -> bool:
-            q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle")
+            q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle",
+                       until_short=True)  # fmt: skip
+            if q is None:
+                return False
             reached = _errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE
             return bool(reached and _off_stops(state, q, seg.goal.effector[0]))
 
@@ -428,14 +432,16 @@ def _chain(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     reach: str,
-) -> FloatArray:
+    until_short: bool = False,
+) -> FloatArray | None:
     """(K, D) keyframes solved one after the other, each from the one before (the first from
     ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
     the arm (solved each from the reach pose, a lifted key sometimes took another forearm roll:
     a 40 deg step between two frames). Random restarts are used only where a warm start
     stalls short of the goal, and kept only when they reach it: on a fastener out of reach every
     key is short, and the restarts' slightly nearer poses flipped the shoulder by 175 deg
-    between neighbouring keys."""
+    between neighbouring keys. ``until_short``: None as soon as a key is short (a question of
+    whether every key is reached need not solve the keys after the first that is not)."""
     skel = state.skel
     k = len(hands)
     model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
@@ -456,10 +462,13 @@ def _chain(
         if err > TOLERANCE:
             q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
             # most restarts find nothing nearer: the same pose is as short (err), not measured
+            reached = False
             if not np.array_equal(q2, q):
                 err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
                 if err2 <= TOLERANCE:  # a restart short too is no better: another branch
-                    q = q2
+                    q, reached = q2, True
+            if until_short and not reached:
+                return None
         out[i] = prev = q[0]
     return out
 

@@ -10,7 +10,10 @@ operations. Per-call overhead, not arithmetic, is what a single solve pays for.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -23,6 +26,155 @@ FloatArray = NDArray[np.float64]
 # From this many rows the component-major kernel wins (measured on the 36-dof body: equal at
 # ~20 rows, 5x faster at 1,000); below it the matrix kernel makes fewer numpy calls.
 COLUMNS_MIN_BATCH = 32
+
+
+@dataclass(frozen=True, eq=False)
+class _Structure:
+    """What a problem's sites and moving dofs fix of a model, whatever the base angles: built
+    once per (skeleton, sites, dofs) and shared (a held arm solved frame after frame rebuilt
+    it ~1,800 times per manikin, 1 ms each: most of the model's cost)."""
+
+    active: NDArray[np.intp]
+    live: list[int]
+    frozen: list[int]
+    baked: NDArray[np.intp]
+    live_dofs: NDArray[np.intp]
+    act_pos: NDArray[np.intp]
+    act_col: NDArray[np.intp]
+    A0: FloatArray
+    A1: FloatArray
+    A2: FloatArray
+    axis: FloatArray
+    plan: list[tuple[int, int, FloatArray, list[tuple[int, int]]]]
+    site_joint: list[int]
+    site_live: list[int]
+    site_off: list[FloatArray]
+    site_cols: list[NDArray[np.intp]]
+    mask: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    coordinates: tuple[list[int], FloatArray] | None
+    # per frozen joint: joint, parent, its dofs with the axis' K and K @ K (Rodrigues' terms)
+    frozen_dofs: list[tuple[int, int, list[tuple[int, FloatArray, FloatArray]]]]
+
+
+_STRUCTURES: weakref.WeakKeyDictionary[Skeleton, dict[tuple[Any, ...], _Structure]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _structure(skel: Skeleton, sites: tuple[str, ...], active: NDArray[np.intp]) -> _Structure:
+    """The shared ``_Structure`` of a problem (a skeleton's derived arrays never change)."""
+    key = (sites, active.tobytes())
+    cache = _STRUCTURES.setdefault(skel, {})
+    found = cache.get(key)
+    if found is None:
+        found = cache[key] = _build_structure(skel, sites, active)
+    return found
+
+
+def _build_structure(
+    skel: Skeleton, sites: tuple[str, ...], active: NDArray[np.intp]
+) -> _Structure:
+    site_j = [skel.joint_index(skel.site(s).joint) for s in sites]
+    nj = skel.n_joints
+    relevant = sorted({k for j in site_j for k in range(nj) if skel.ancestor[j, k]})
+    act = set(active.tolist())
+    has_act = [
+        any(
+            d in act
+            for d in range(
+                int(skel.joint_dof_start[k]),
+                int(skel.joint_dof_start[k] + skel.joint_dof_count[k]),
+            )
+        )
+        for k in range(nj)
+    ]
+    live = [j for j in relevant if any(has_act[k] for k in range(nj) if skel.ancestor[j, k])]
+    frozen = [j for j in relevant if j not in live]
+    moved = [int(d) for d in active if int(skel.dof_joint[d]) not in live]
+    if moved:
+        names = ", ".join(skel.dof_names[d] for d in moved)
+        raise ValueError(f"dofs {names} do not move any goal site")
+    # the dofs whose angles the model bakes in from ``q_base``: every dof on a path from the
+    # root to a site that the solver does not move (``for_start`` checks a start against them)
+    baked = np.asarray(
+        [
+            d
+            for j in relevant
+            for d in range(
+                int(skel.joint_dof_start[j]),
+                int(skel.joint_dof_start[j] + skel.joint_dof_count[j]),
+            )
+            if d not in act
+        ],
+        dtype=np.intp,
+    )
+    # Live dofs, in order; which of them are active and at which active column.
+    live_dofs = [
+        d
+        for j in live
+        for d in range(
+            int(skel.joint_dof_start[j]), int(skel.joint_dof_start[j] + skel.joint_dof_count[j])
+        )
+    ]
+    live_idx = np.asarray(live_dofs, dtype=np.intp)
+    col = {int(d): i for i, d in enumerate(active)}
+    K = skew(skel.dof_axis[live_idx])
+    # Per live joint: parent (live index or frozen id), offset, its live-dof slots.
+    pos_in_live = {j: i for i, j in enumerate(live)}
+    plan: list[tuple[int, int, FloatArray, list[tuple[int, int]]]] = []
+    slot = 0
+    for j in live:
+        pj = int(skel.parent[j])
+        n = int(skel.joint_dof_count[j])
+        dofs = []
+        for k in range(n):
+            d = live_dofs[slot + k]
+            dofs.append((slot + k, col.get(d, -1)))
+        slot += n
+        plan.append((pos_in_live.get(pj, -1), pj, skel.offsets[j], dofs))
+    dj = skel.dof_joint[active]
+    axis = skel.dof_axis[live_idx]
+    return _Structure(
+        active=active,
+        live=live,
+        frozen=frozen,
+        baked=baked,
+        live_dofs=live_idx,
+        act_pos=np.array([i for i, d in enumerate(live_dofs) if d in col], dtype=np.intp),
+        act_col=np.array([col[d] for d in live_dofs if d in col], dtype=np.intp),
+        A0=np.eye(3) + K @ K,
+        A1=K,
+        A2=-(K @ K),
+        axis=axis,
+        plan=plan,
+        # Sites: joint (live index or frozen), offset; Jacobian mask (S, nA).
+        site_joint=site_j,
+        site_live=[pos_in_live.get(j, -1) for j in site_j],
+        site_off=[np.asarray(skel.site(s).offset, dtype=float) for s in sites],
+        site_cols=[
+            np.array(
+                [i for i, d in enumerate(active) if skel.ancestor[j, skel.dof_joint[d]]]
+            ).astype(np.intp)
+            for j in site_j
+        ],
+        mask=np.array([[skel.ancestor[j, k] for k in dj] for j in site_j], dtype=float),
+        lower=skel.lower[active],
+        upper=skel.upper[active],
+        coordinates=_coordinate_plan(axis),
+        frozen_dofs=[(j, int(skel.parent[j]), _axis_terms(skel, j)) for j in frozen],
+    )
+
+
+def _axis_terms(skel: Skeleton, j: int) -> list[tuple[int, FloatArray, FloatArray]]:
+    """Joint ``j``'s dofs with their axes' K and K @ K."""
+    s = int(skel.joint_dof_start[j])
+    out = []
+    for k in range(s, s + int(skel.joint_dof_count[j])):
+        K = skew(skel.dof_axis[k])
+        out.append((k, K, K @ K))
+    return out
 
 
 class ChainModel:
@@ -39,111 +191,50 @@ class ChainModel:
     ) -> None:
         self.skel = skel
         self.sites = tuple(sites)
-        self.active = np.asarray(sorted(set(active)), dtype=np.intp)
-        if self.active.size == 0:
+        act = np.asarray(sorted(set(active)), dtype=np.intp)
+        if act.size == 0:
             raise ValueError("no dofs to move")
+        st = _structure(skel, self.sites, act)
+        self.active = st.active
         qb = np.atleast_2d(np.asarray(q_base, dtype=float))
         self.B = qb.shape[0]
         self.q_base = qb
         self._root_args = (root_position, root_rotation)
-        site_j = [skel.joint_index(skel.site(s).joint) for s in self.sites]
-        nj = skel.n_joints
-        relevant = sorted({k for j in site_j for k in range(nj) if skel.ancestor[j, k]})
-        act = set(self.active.tolist())
-        has_act = [
-            any(
-                d in act
-                for d in range(
-                    int(skel.joint_dof_start[k]),
-                    int(skel.joint_dof_start[k] + skel.joint_dof_count[k]),
-                )
-            )
-            for k in range(nj)
-        ]
-        live = [j for j in relevant if any(has_act[k] for k in range(nj) if skel.ancestor[j, k])]
-        frozen = [j for j in relevant if j not in live]
-        moved = [int(d) for d in self.active if int(skel.dof_joint[d]) not in live]
-        if moved:
-            names = ", ".join(skel.dof_names[d] for d in moved)
-            raise ValueError(f"dofs {names} do not move any goal site")
-        self.live = live
-        # the dofs whose angles the model bakes in from ``q_base``: every dof on a path from the
-        # root to a site that the solver does not move (``for_start`` checks a start against them)
-        self.baked = np.asarray(
-            [
-                d
-                for j in relevant
-                for d in range(
-                    int(skel.joint_dof_start[j]),
-                    int(skel.joint_dof_start[j] + skel.joint_dof_count[j]),
-                )
-                if d not in act
-            ],
-            dtype=np.intp,
-        )
+        self.live = st.live
+        self.baked = st.baked
         # Frozen frames: FK over frozen joints only (their ancestors are frozen too).
         rp, RR = _root_inputs(skel, (self.B,), root_position, root_rotation)
         self.root = rp
         base_R: dict[int, FloatArray] = {}
         base_p: dict[int, FloatArray] = {}
-        for j in frozen:
-            pj = int(skel.parent[j])
+        eye = np.eye(3)
+        for j, pj, dofs in st.frozen_dofs:
             if pj < 0:
                 Rw, pw = RR, rp + RR @ skel.offsets[j]
             else:
                 Rw, pw = base_R[pj], base_p[pj] + base_R[pj] @ skel.offsets[j]
-            s = int(skel.joint_dof_start[j])
-            for k in range(s, s + int(skel.joint_dof_count[j])):
-                Rw = Rw @ _rot(skel.dof_axis[k], qb[:, k])
+            for k, K, KK in dofs:
+                angles = qb[:, k]
+                s = np.sin(angles)[:, None, None]
+                c = np.cos(angles)[:, None, None]
+                Rw = Rw @ (eye + s * K + (1 - c) * KK)
             base_R[j], base_p[j] = Rw, pw
         self._base_R, self._base_p = base_R, base_p
-        # Live dofs, in order; which of them are active and at which active column.
-        live_dofs = [
-            d
-            for j in live
-            for d in range(
-                int(skel.joint_dof_start[j]), int(skel.joint_dof_start[j] + skel.joint_dof_count[j])
-            )
-        ]
-        self._live_dofs = np.asarray(live_dofs, dtype=np.intp)
-        col = {int(d): i for i, d in enumerate(self.active)}
-        self._act_pos = np.array([i for i, d in enumerate(live_dofs) if d in col], dtype=np.intp)
-        self._act_col = np.array([col[d] for d in live_dofs if d in col], dtype=np.intp)
+        self._live_dofs = st.live_dofs
+        self._act_pos, self._act_col = st.act_pos, st.act_col
         self._qlive = qb[:, self._live_dofs].copy()
-        K = skew(skel.dof_axis[self._live_dofs])
-        self._A0 = np.eye(3) + K @ K
-        self._A1 = K
-        self._A2 = -(K @ K)
-        self._axis = skel.dof_axis[self._live_dofs]
-        # Per live joint: parent (live index or frozen id), offset, its live-dof slots.
-        pos_in_live = {j: i for i, j in enumerate(live)}
-        self._plan: list[tuple[int, int, FloatArray, list[tuple[int, int]]]] = []
-        slot = 0
-        for j in live:
-            pj = int(skel.parent[j])
-            n = int(skel.joint_dof_count[j])
-            dofs = []
-            for k in range(n):
-                d = live_dofs[slot + k]
-                dofs.append((slot + k, col.get(d, -1)))
-            slot += n
-            self._plan.append((pos_in_live.get(pj, -1), pj, skel.offsets[j], dofs))
-        # Sites: joint (live index or frozen), offset; Jacobian mask (S, nA).
-        self._site_joint = site_j
-        self._site_live = [pos_in_live.get(j, -1) for j in site_j]
-        self._site_off = [np.asarray(skel.site(s).offset, dtype=float) for s in self.sites]
-        self._site_cols = [
-            np.array(
-                [i for i, d in enumerate(self.active) if skel.ancestor[j, skel.dof_joint[d]]]
-            ).astype(np.intp)
-            for j in site_j
-        ]
-        dj = skel.dof_joint[self.active]
-        self.mask = np.array([[skel.ancestor[j, k] for k in dj] for j in site_j], dtype=float)
-        self.lower = skel.lower[self.active]
-        self.upper = skel.upper[self.active]
+        self._A0, self._A1, self._A2 = st.A0, st.A1, st.A2
+        self._axis = st.axis
+        self._plan = st.plan
+        self._site_joint = st.site_joint
+        self._site_live = st.site_live
+        self._site_off = st.site_off
+        self._site_cols = st.site_cols
+        self.mask = st.mask
+        self.lower = st.lower
+        self.upper = st.upper
         self.n = self.active.size
-        self._cm = _coordinate_plan(self._axis)
+        self._cm = st.coordinates
 
     def for_start(self, q_full: FloatArray) -> ChainModel:
         """This model if it was built for the start ``q_full`` (B, D) (the same angles of every
@@ -534,10 +625,3 @@ def _take(arr: FloatArray, rows: NDArray[np.intp] | None, b: int) -> FloatArray:
     if rows is None:
         raise ValueError(f"batch of {b} does not match the model's {arr.shape[0]} base rows")
     return arr[rows]
-
-
-def _rot(axis: FloatArray, angles: FloatArray) -> FloatArray:
-    K = skew(axis)
-    s = np.sin(angles)[:, None, None]
-    c = np.cos(angles)[:, None, None]
-    return np.eye(3) + s * K + (1 - c) * (K @ K)

@@ -16,12 +16,19 @@ separately (tests/codegen/test_outputs.py, ``test_every_target_is_byte_identical
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import difflib
+import functools
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
+
+if TYPE_CHECKING:
+    from mtlc.preview.compile import Compiled
 
 ROOT = Path(__file__).resolve().parent.parent
 GOLDENS = Path(__file__).resolve().parent / "goldens"
@@ -126,3 +133,20 @@ def _run_in_repo(monkeypatch: pytest.MonkeyPatch) -> None:
     """Display paths are relative to the cwd: run every test from the checkout's root."""
     monkeypatch.chdir(ROOT)
     monkeypatch.setenv("NO_COLOR", "1")
+
+
+@functools.cache
+def _compiled_once(path: Path) -> Compiled:
+    from mtlc.frontend import FrontendOptions
+    from mtlc.preview.compile import compile_motions
+
+    with contextlib.chdir(ROOT):  # display paths relative to the checkout, as the tests run
+        return compile_motions([path.relative_to(ROOT)], FrontendOptions())
+
+
+def compiled_example(path: Path) -> Compiled:
+    """An example compiled with the default options, once per test process and copied for each
+    caller: the BVH, JackScript, replay and preview modules read the same compiles (each module
+    compiling every example took 11-13 s of the suite). A copy, so that no module sees what
+    another changed."""
+    return copy.deepcopy(_compiled_once(path))

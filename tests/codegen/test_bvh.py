@@ -17,6 +17,7 @@ from pathlib import Path
 import bvhio
 import numpy as np
 import pytest
+from conftest import compiled_example
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from pyglm import glm
@@ -50,7 +51,12 @@ def compile_example(path: Path) -> MotionIR:
 
 @pytest.fixture(scope="module")
 def example_irs() -> dict[str, MotionIR]:
-    return {p.stem: compile_example(p) for p in EXAMPLES}
+    return {p.stem: _only(compiled_example(p).motions) for p in EXAMPLES}
+
+
+def _only(motions: list[MotionIR]) -> MotionIR:
+    (ir,) = motions
+    return ir
 
 
 def read_back(text: str) -> tuple[bvhio.Joint, bvhio.BvhContainer]:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compiled_example
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -58,7 +59,7 @@ def compile_file(path: Path) -> list[MotionIR]:
 
 @pytest.fixture(scope="module")
 def example_irs() -> dict[str, list[MotionIR]]:
-    return {p.stem: compile_file(p) for p in EXAMPLES}
+    return {p.stem: compiled_example(p).motions for p in EXAMPLES}
 
 
 def api_call_names() -> set[str]:

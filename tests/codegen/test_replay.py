@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compiled_example
 
 from mtlc.codegen.jack_api import DOF_MAP, EFFECTORS, JACK_API
 from mtlc.codegen.jackscript import (
@@ -24,9 +25,7 @@ from mtlc.codegen.jackscript import (
     to_jack_position,
 )
 from mtlc.codegen.replay import ReplayedMotion, ReplayError, replay
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import run_motion
 
 # not imported from conftest: another tests/ folder has a conftest module of its own
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,11 +45,7 @@ def t():
 
 @pytest.fixture(scope="module")
 def example_irs() -> list[MotionIR]:
-    irs = []
-    for path in EXAMPLES:
-        program = run_frontend([path])
-        irs += [run_motion(t, program.sink) for t in program.timelines]
-    return irs
+    return [ir for path in EXAMPLES for ir in compiled_example(path).motions]
 
 
 def replay_task(ir: MotionIR, ta: str) -> ReplayedMotion:

@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import compiled_example
 
 from mtlc.frontend import FrontendOptions
 from mtlc.passes import MotionOptions
-from mtlc.preview.compile import compile_motions
 from mtlc.preview.html import render_page
 from mtlc.preview.server import MotionHub, PreviewServer
 
@@ -39,7 +39,7 @@ def examples(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Example]:
     out = tmp_path_factory.mktemp("previews")
     result: dict[str, Example] = {}
     for path in EXAMPLES:
-        compiled = compile_motions([path.relative_to(ROOT)], FrontendOptions())
+        compiled = compiled_example(path)
         assert compiled.ok, compiled.program.diagnostics
         ir, doc = compiled.motions[0], compiled.documents()[0]
         page = out / f"{path.stem}.html"

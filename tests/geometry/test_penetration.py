@@ -257,14 +257,14 @@ def outdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("penetration")
 
 
-# what is left (main 3aa2bc5; each "part mm into model at s (task line)", the deepest of each)
+# what is left (main; each "part mm into model at s (task line)", the deepest of each). The
+# hands through the panel at the bolts (19.0 and 23.7 mm) are exempt since verify reports each
+# goal of a line (MT0515 per bolt, not per `for` line): male P95's access panel passes.
 LEFT = {
-    ("remove_access_panel_cad", "gb10000_1988:female:5"): "right hand 19.0 mm through the panel "
-    "at the first bolt, 9.47 s (31: the hand's fingers point into the panel while the wrench "
-    "is on the bolt), the wrench 10.7-11.5 mm (31), right forearm 5.8 (31), left forearm 4.5 "
-    "into the bench (36), 3.3 into the carried panel (36), right hand 3.4 (31)",
-    ("remove_access_panel_cad", "gb10000_1988:male:95"): "right hand 23.7 mm through the panel "
-    "at the first bolt, 9.63 s (31), the wrench 10.4-11.5 mm (31)",
+    ("remove_access_panel_cad", "gb10000_1988:female:5"): "the wrench 10.2 mm into the panel at "
+    "3.13 s (31: at the first bolt, whose MT0515 names the hand, not the wrench), right "
+    "forearm 5.8 (31, between bolts), left forearm 4.5 into the bench (36), 3.3 into the carried "
+    "panel (36)",
     ("replace_fuel_filter_cad", "gb10000_1988:female:5"): "left hand 49.8 mm in the bowl the "
     "right hand takes away, 8.20 s (46: the released hand stays where the bowl was), head "
     "12.2 and 6.3 mm into the left wall (48-49, 51: no pass keeps the trunk and head out)",

@@ -700,7 +700,7 @@ class _Verifier:
 
     def equipment(self) -> None:
         """The body's capsules and the held tools outside the scene's models (MT0515): one
-        finding per task line, part and model, at its deepest frame. A hand or its tool at its
+        finding per task line, part, model and goal, at its deepest frame. A hand or its tool at its
         goal's site (``at_site``) touches the model the site is on: not a finding."""
         models = {m.name: m for m in self.ir.geometry if len(m.faces)}
         if not models:
@@ -727,9 +727,13 @@ class _Verifier:
             "model": fc.meshes[rest % m].split("/")[0] if depth.reshape(-1)[k] > 0 else "",
             "time": float(self.t[i]),
         } | ({"held": [self.held_record(part) for part in held]} if held else {})
-        # per (line, part, model) its deepest frame, the column (a held part is a column of
-        # its own, ``model/node``) and the goal at the site then
-        worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, Segment | None, str]]
+        # per (line, part, model, goal site) its deepest frame, the column (a held part is a
+        # column of its own, ``model/node``) and the goal at the site then: a `for` over four
+        # bolts is one line and four goals, each reported (one finding per line left three of
+        # them a hand through the panel without a word)
+        worst: dict[
+            tuple[SourceRef, str, str, str | None], tuple[float, int, Segment, Segment | None, str]
+        ]
         worst = {}
         for j, part in enumerate(fc.capsules):
             side = sides[j]
@@ -749,13 +753,14 @@ class _Verifier:
                         if seg is None or not depth[i, j, col] > EQUIPMENT_TOLERANCE:
                             continue
                         goal = goal_at[i].get(side) if side and seg.track in tracks else None
-                        key = (seg.provenance.origin, part, column.split("/")[0])
+                        site = goal.goal.site if goal is not None else None
+                        key = (seg.provenance.origin, part, column.split("/")[0], site)
                         if key not in worst or _noise_free(depth[i, j, col]) > _noise_free(
                             worst[key][0]
                         ):
                             worst[key] = (float(depth[i, j, col]), i, seg, goal, column)
         by_column = {part.column: part for part in held}
-        for (_, part, model), (d, i, seg, goal, column) in worst.items():
+        for (_, part, model, _site), (d, i, seg, goal, column) in worst.items():
             j = fc.capsules.index(part)
             a, b, radius = capsule_segments(self.skel, take_pose(self.pose, slice(i, i + 1)),
                                             (caps[j],))  # fmt: skip
@@ -919,7 +924,8 @@ class _Verifier:
             )
         else:
             message = f"{what} in `{self.where(seg)}`"
-        self.report("MT0515", message, seg.provenance.origin, ("equipment", part, model))
+        site = goal.goal.site if goal is not None else None
+        self.report("MT0515", message, seg.provenance.origin, ("equipment", part, model, site))
 
 
 def verify(ir: MotionIR, ctx: PassContext) -> Verification:

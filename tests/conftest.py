@@ -28,7 +28,10 @@ from typing import TYPE_CHECKING
 import pytest
 
 if TYPE_CHECKING:
+    from mtlc.diagnostics import DiagnosticSink
+    from mtlc.ir.model import MotionIR
     from mtlc.preview.compile import Compiled
+    from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 GOLDENS = Path(__file__).resolve().parent / "goldens"
@@ -150,3 +153,26 @@ def compiled_example(path: Path) -> Compiled:
     compiling every example took 11-13 s of the suite). A copy, so that no module sees what
     another changed."""
     return copy.deepcopy(_compiled_once(path))
+
+
+def compile_on(
+    path: Path, manikin: ManikinSpec | tuple[str, int] | None = None, *, until: str | None = None
+) -> tuple[MotionIR, DiagnosticSink]:
+    """A one-task file that checks clean, its motion compiled for one manikin (a spec, or the
+    GB 10000-88 sex and percentile; None: the file's own) up to ``until``, with the motion
+    passes' diagnostics in a sink of their own."""
+    from mtlc.diagnostics import DiagnosticSink
+    from mtlc.frontend import run_frontend
+    from mtlc.passes import MotionOptions, run_motion
+    from mtlc.semantics import schedule
+    from mtlc.semantics.timeline import ManikinSpec
+
+    program = run_frontend([path])
+    assert not program.sink.has_errors, [d.message for d in program.sink.items]
+    (timeline,) = program.timelines
+    if isinstance(manikin, tuple):
+        manikin = ManikinSpec("gb10000_1988", *manikin)
+    if manikin is not None:
+        timeline = schedule.for_manikin(timeline, manikin)
+    sink = DiagnosticSink()
+    return run_motion(timeline, sink, MotionOptions(), until=until), sink

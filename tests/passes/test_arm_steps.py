@@ -17,13 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
-from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import all_manikins
-from mtlc.passes import MotionOptions, run_motion
-from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,9 +38,7 @@ KNOWN: dict[tuple[str, str], str] = {}
 
 
 def compile_for(path: Path, manikin: ManikinSpec) -> MotionIR:
-    (timeline,) = run_frontend([path]).timelines
-    timeline = schedule.for_manikin(timeline, manikin)
-    return run_motion(timeline, DiagnosticSink(), MotionOptions())
+    return compile_on(path, manikin)[0]
 
 
 def turning_steps(ir: MotionIR) -> np.ndarray:

@@ -13,13 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
-from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import _let_go_at_branch_jumps
-from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -29,9 +26,7 @@ STEP = 12.0  # deg between two output frames at 30 fps
 
 
 def compile_for(manikin: ManikinSpec) -> MotionIR:
-    (timeline,) = run_frontend([LID]).timelines
-    timeline = schedule.for_manikin(timeline, manikin)
-    return run_motion(timeline, DiagnosticSink(), MotionOptions())
+    return compile_on(LID, manikin)[0]
 
 
 @pytest.mark.parametrize(("sex", "percentile"), [("female", 50), ("male", 1), ("female", 10)])

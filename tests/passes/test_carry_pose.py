@@ -16,16 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
-from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import all_manikins
-from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries
 from mtlc.passes.carry_pose import elbow_height
-from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,9 +32,7 @@ MANIKINS = [m for m in all_manikins() if (m.sex, m.percentile) in
 
 
 def compile_for(path: Path, manikin: ManikinSpec, until: str | None = None) -> MotionIR:
-    (timeline,) = run_frontend([path]).timelines
-    timeline = schedule.for_manikin(timeline, manikin)
-    return run_motion(timeline, DiagnosticSink(), MotionOptions(), until=until)
+    return compile_on(path, manikin, until=until)[0]
 
 
 def carried_walk(ir: MotionIR) -> tuple[float, float]:

@@ -14,16 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.hold import hold_spans
-from mtlc.semantics import schedule
-from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "lean"
 PROCEDURES = sorted(p.name for p in DATA.glob("*.mtask"))
@@ -34,12 +31,7 @@ LEAN_SLACK = 10.0  # deg over the least flexion any of the independent solutions
 
 
 def compile_file(path: Path, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
-    program = run_frontend([path])
-    assert not program.sink.has_errors, [d.message for d in program.sink.items]
-    (timeline,) = program.timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(path, (sex, pct))
 
 
 def flexion(ir: MotionIR, q: np.ndarray) -> np.ndarray:

@@ -13,15 +13,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
+from mtlc.passes import run_motion
 from mtlc.passes.hold import hold_spans
-from mtlc.semantics import schedule
-from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAD = "use stdlib.actions\nuse stdlib.elements\n\n"
@@ -76,12 +75,7 @@ def compile_text(tmp: Path, text: str, sex: str, pct: int) -> tuple[MotionIR, Di
 
 
 def compile_file(path: Path, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
-    program = run_frontend([path])
-    assert not program.sink.has_errors, [d.message for d in program.sink.items]
-    (timeline,) = program.timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(path, (sex, pct))
 
 
 def hold_misses(ir: MotionIR) -> list[tuple[int, str, float]]:

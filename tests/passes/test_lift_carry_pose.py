@@ -18,14 +18,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
-from mtlc.semantics import schedule
-from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "lift"
 MANIKINS = [("female", 5), ("male", 50), ("male", 95)]
@@ -37,12 +34,7 @@ MAX_STEP = math.radians(12.0)  # issue 19: a joint's largest one-frame step at 3
 
 
 def compile_for(name: str, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
-    program = run_frontend([DATA / name])
-    assert not program.sink.has_errors, [d.message for d in program.sink.items]
-    (timeline,) = program.timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(DATA / name, (sex, pct))
 
 
 @pytest.mark.parametrize(("name", "hands"), CASES)

@@ -13,18 +13,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import build_manikin, forward, site_positions
 from mtlc.body.capsules import ARM_LIMBS, limbs_of_sides, self_intersection
 from mtlc.body.ik.clearance import arm_dofs, keep_clear, penetration
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries, part_ends
 from mtlc.passes.posture import clear_arms
-from mtlc.semantics import schedule
-from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAD = "use stdlib.actions\nuse stdlib.elements\n\n"
@@ -81,12 +78,7 @@ def compile_text(
 def compile_file(
     path: Path, manikin: tuple[str, int] | None = None
 ) -> tuple[MotionIR, DiagnosticSink]:
-    program = run_frontend([path])
-    (timeline,) = program.timelines
-    if manikin is not None:
-        timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", *manikin))
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(path, manikin)
 
 
 def hand_gap_change(ir: MotionIR) -> float:

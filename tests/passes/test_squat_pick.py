@@ -18,25 +18,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MotionOptions, run_motion
-from mtlc.semantics import schedule
-from mtlc.semantics.timeline import ManikinSpec
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "squat"
 
 
 def compile_for(name: str, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
-    program = run_frontend([DATA / name])
-    assert not program.sink.has_errors, [d.message for d in program.sink.items]
-    (timeline,) = program.timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", sex, pct))
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(DATA / name, (sex, pct))
 
 
 def hand_at_goal_end(ir: MotionIR, site: str) -> float:

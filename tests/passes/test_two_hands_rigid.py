@@ -15,15 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compile_on
 
 from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.manikins import all_manikins
-from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries, part_path
-from mtlc.semantics import schedule
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,10 +32,7 @@ KEPT = 5e-3  # m: the hands' distance stays this close to the grip's
 
 
 def compile_for(path: Path, manikin: ManikinSpec) -> tuple[MotionIR, DiagnosticSink]:
-    (timeline,) = run_frontend([path]).timelines
-    timeline = schedule.for_manikin(timeline, manikin)
-    sink = DiagnosticSink()
-    return run_motion(timeline, sink, MotionOptions()), sink
+    return compile_on(path, manikin)
 
 
 def hands_apart(ir: MotionIR) -> np.ndarray:

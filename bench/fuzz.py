@@ -760,7 +760,7 @@ def run(args: argparse.Namespace) -> dict[str, Tally]:
     if times is not None:
         times.write("stage\tcase\torigin\tstatus\tcpu_s\twall_s\tpeak_mb\n")
     try:
-        for index in range(args.cases):
+        for index in range(args.first, args.cases):
             if args.max_seconds and time.perf_counter() - t_start > args.max_seconds:
                 print(f"stopped after {index} cases: --max-seconds", file=sys.stderr)
                 break
@@ -874,6 +874,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cases", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument(
+        "--first",
+        type=int,
+        default=0,
+        help="start at this case (each case is made from the seed and its index alone, so a "
+        "run can be split across processes: --first K --cases N runs K..N-1)",
+    )
     parser.add_argument("--stages", default=",".join(STAGES))
     parser.add_argument("--heavy", type=int, default=100, help="lint/compile this many clean cases")
     parser.add_argument("--serve-every", type=int, default=10, help="serve stage on every Nth case")

@@ -498,6 +498,34 @@ def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
     return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
 
 
+def forward_changed(
+    skel: Skeleton,
+    q: ArrayLike,
+    root_position: ArrayLike | None,
+    root_rotation: ArrayLike | None,
+    base_q: FloatArray,
+    base: Pose,
+) -> Pose:
+    """``forward(skel, q, root_position, root_rotation, with_axes=False)`` of configurations
+    ``q`` (n, D) given ``base``, that call's pose of ``base_q`` (n, D) with the same root: only
+    the branches below the topmost joints whose dofs differ (bit for bit) are placed again
+    (``forward_below``), so the same numbers. A path smoothed again moves one arm: its trunk
+    and legs are not posed a second time."""
+    qa = np.asarray(q, dtype=float)
+    if len(qa) == 0 or qa.shape != np.shape(base_q):
+        return forward(skel, qa, root_position, root_rotation, with_axes=False)
+    bits = np.ascontiguousarray(qa).view(np.int64) != np.ascontiguousarray(base_q).view(np.int64)
+    joints = np.unique(skel.dof_joint[np.flatnonzero(bits.any(axis=0))])
+    # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
+    tops = joints[skel.ancestor[np.ix_(joints, joints)].sum(axis=1) == 1].tolist()
+    if any(skel.parent[top] < 0 for top in tops):  # the root's own dofs: every joint moves
+        return forward(skel, qa, root_position, root_rotation, with_axes=False)
+    pose = base
+    for top in tops:
+        pose = forward_below(skel, qa, pose, top)
+    return pose
+
+
 def dof_world_axes(skel: Skeleton, pose: Pose, q: ArrayLike, dofs: Sequence[int]) -> FloatArray:
     """World axes (n, len(dofs), 3) of ``dofs`` at configurations ``q`` (n, D) posed as
     ``pose`` (which may lack ``axes``: ``forward_below``'s): a dof's axis turned by its joint's

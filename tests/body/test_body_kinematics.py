@@ -21,6 +21,7 @@ from mtlc.body import (
     site_positions,
     site_rotation,
 )
+from mtlc.body.capsules import clearance, limbs_of_sides, measured_points, self_intersection
 from mtlc.body.kinematics import (
     axis_angle,
     cross,
@@ -255,6 +256,30 @@ def test_forward_below_is_whole_body_forward_to_the_bit(rows: int, joint: str, s
     assert np.array_equal(branch.p, whole.p)
     assert np.array_equal(branch.R, whole.R)
     assert not np.array_equal(branch.R[:, top], base.R[:, top])  # the branch did move
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    rows=st.integers(1, 300),
+    sides=st.sampled_from(["r", "l", "rl"]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_clearance_of_the_measured_points_is_the_whole_bodys_to_the_bit(
+    rows: int, sides: str, seed: int
+) -> None:
+    """The pace and clearance passes pose only ``measured_points`` (``forward_part``): the
+    depths ``self_intersection`` and ``clearance`` read from that pose are the whole body's."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(SK.lower, SK.upper, size=(rows, SK.n_dofs))
+    root = rng.normal(size=(rows, 3)), rng.normal(size=(rows, 4))
+    limbs = limbs_of_sides(set(sides))
+    whole = forward(SK, q, *root, with_axes=False)
+    part = forward_part(SK, q, *root, measured_points(SK, limbs))
+    assert np.isnan(part.p).any()  # some joints were left out
+    assert np.array_equal(
+        self_intersection(SK, part, limbs)[0], self_intersection(SK, whole, limbs)[0]
+    )
+    assert np.array_equal(clearance(SK, part, limbs), clearance(SK, whole, limbs))
 
 
 @settings(max_examples=25, deadline=None)

@@ -408,7 +408,7 @@ def forward_part(
     sites: Sequence[str],
 ) -> Pose:
     """``forward(skel, q, ...)`` (``with_axes=False``) of only the joints that carry ``sites``
-    and their ancestors; every other joint's frame is NaN. The same products in the same order
+    (site or joint names) and their ancestors; every other joint's frame is NaN. The same products in the same order
     as ``forward``, so the same numbers: a pass that needs a hand's or the feet's positions on
     thousands of frames places 7 or 9 joints, not 21."""
     qa = np.asarray(q, dtype=float)
@@ -468,11 +468,15 @@ def part_site_positions(
 
 
 def _part(skel: Skeleton, sites: tuple[str, ...]) -> _Branch:
-    """The root-down branch of the joints that carry ``sites`` (cached per skeleton)."""
+    """The root-down branch of the joints that carry ``sites`` (or are named: a joint's own
+    name carries its origin; cached per skeleton)."""
     cache: dict[tuple[str, ...], _Branch] = skel.__dict__.setdefault("_fk_parts", {})
     found = cache.get(sites)
     if found is None:
-        carriers = {skel.joint_index(skel.site(name).joint) for name in sites}
+        carriers = {
+            skel.joint_index(name if name in skel.joint_names else skel.site(name).joint)
+            for name in sites
+        }
         keep = skel.ancestor[list(carriers)].any(axis=0)  # (ancestor[j, k]: k is j or above it)
         found = cache[sites] = _subtree(skel, np.flatnonzero(keep))
     return found

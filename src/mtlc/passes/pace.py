@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import Pose, forward, part_site_positions, site_positions
-from mtlc.body.capsules import limbs_of_sides, self_intersection
+from mtlc.body import Pose, forward_part, part_site_positions, site_positions
+from mtlc.body.capsules import limbs_of_sides, measured_points, self_intersection
 from mtlc.body.kinematics import forward_changed
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
@@ -280,8 +280,11 @@ def approach_depth(
             pose = forward_changed(
                 skel, body.q, body.root_position, body.root_rotation, was.q, base
             )
-        else:
-            pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
+        else:  # the joints the sites and the arms' clearance read, not the whole body
+            pose = forward_part(
+                skel, body.q, body.root_position, body.root_rotation,
+                [*names, *measured_points(skel, mine)],
+            )  # fmt: skip
         p = site_positions(skel, pose, names)
     else:
         p = part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)

@@ -21,10 +21,12 @@ from mtlc.body import (
     site_positions,
     site_rotation,
 )
+from mtlc.body.capsules import clearance, limbs_of_sides, measured_points, self_intersection
 from mtlc.body.kinematics import (
     axis_angle,
     cross,
     forward_below,
+    forward_changed,
     forward_part,
     part_site_positions,
     rotate_about,
@@ -254,6 +256,60 @@ def test_forward_below_is_whole_body_forward_to_the_bit(rows: int, joint: str, s
     assert np.array_equal(branch.p, whole.p)
     assert np.array_equal(branch.R, whole.R)
     assert not np.array_equal(branch.R[:, top], base.R[:, top])  # the branch did move
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    rows=st.integers(1, 300),
+    sides=st.sampled_from(["r", "l", "rl"]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_clearance_of_the_measured_points_is_the_whole_bodys_to_the_bit(
+    rows: int, sides: str, seed: int
+) -> None:
+    """The pace and clearance passes pose only ``measured_points`` (``forward_part``): the
+    depths ``self_intersection`` and ``clearance`` read from that pose are the whole body's."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(SK.lower, SK.upper, size=(rows, SK.n_dofs))
+    root = rng.normal(size=(rows, 3)), rng.normal(size=(rows, 4))
+    limbs = limbs_of_sides(set(sides))
+    whole = forward(SK, q, *root, with_axes=False)
+    part = forward_part(SK, q, *root, measured_points(SK, limbs))
+    assert np.isnan(part.p).any()  # some joints were left out
+    assert np.array_equal(
+        self_intersection(SK, part, limbs)[0], self_intersection(SK, whole, limbs)[0]
+    )
+    assert np.array_equal(clearance(SK, part, limbs), clearance(SK, whole, limbs))
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    rows=st.integers(1, 300),
+    joints=st.sampled_from(
+        [[], ["r_elbow"], ["r_shoulder", "r_wrist"], ["l_shoulder", "r_elbow"], ["neck", "r_hip"],
+         ["lumbar", "r_wrist"], ["l_knee", "l_ankle"]]
+    ),
+    seed=st.integers(0, 2**31 - 1),
+)  # fmt: skip
+def test_forward_changed_is_whole_body_forward_to_the_bit(
+    rows: int, joints: list[str], seed: int
+) -> None:
+    """The pace pass poses a path smoothed again from the pose of the path before
+    (``forward_changed``: the branches below the joints whose angles changed): every joint
+    equals whole-body forward kinematics of the new angles, bit for bit."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(SK.lower, SK.upper, size=(rows, SK.n_dofs))
+    root = rng.normal(size=(rows, 3)), rng.normal(size=(rows, 4))
+    base = forward(SK, q, *root, with_axes=False)
+    new = q.copy()
+    for name in joints:
+        dofs = np.flatnonzero(SK.dof_joint == SK.joint_index(name))
+        new[:, dofs] = rng.uniform(SK.lower[dofs], SK.upper[dofs], size=(rows, dofs.size))
+    whole = forward(SK, new, *root, with_axes=False)
+    changed = forward_changed(SK, new, *root, q, base)
+    assert np.array_equal(changed.p, whole.p)
+    assert np.array_equal(changed.R, whole.R)
+    assert np.array_equal(changed.R, base.R) == (not joints)
 
 
 @settings(max_examples=60)

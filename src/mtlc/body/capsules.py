@@ -342,6 +342,14 @@ def self_intersection(
     return np.stack(cols, axis=1), pairs
 
 
+def measured_points(skel: Skeleton, limbs: tuple[Limb, ...]) -> tuple[str, ...]:
+    """The joints and sites whose positions ``self_intersection`` and ``clearance`` of
+    ``limbs`` read (the capsules' ends and the limbs'): what a ``forward_part`` poses for them
+    (the other arm, the head and the feet left out, the same numbers)."""
+    names = [j for cap in body_capsules(skel) for end in cap.ends for j in end]
+    return tuple(dict.fromkeys([*names, *(n for limb in limbs for n in (limb.start, limb.end))]))
+
+
 def limb_radius(skel: Skeleton, limb: Limb) -> float:
     """The limb's own radius (m): ``LIMB_RADIUS`` of the manikin's hand breadth."""
     kind = "hand" if limb.name.endswith("hand") else "forearm"

@@ -408,7 +408,7 @@ def forward_part(
     sites: Sequence[str],
 ) -> Pose:
     """``forward(skel, q, ...)`` (``with_axes=False``) of only the joints that carry ``sites``
-    and their ancestors; every other joint's frame is NaN. The same products in the same order
+    (site or joint names) and their ancestors; every other joint's frame is NaN. The same products in the same order
     as ``forward``, so the same numbers: a pass that needs a hand's or the feet's positions on
     thousands of frames places 7 or 9 joints, not 21."""
     qa = np.asarray(q, dtype=float)
@@ -468,11 +468,15 @@ def part_site_positions(
 
 
 def _part(skel: Skeleton, sites: tuple[str, ...]) -> _Branch:
-    """The root-down branch of the joints that carry ``sites`` (cached per skeleton)."""
+    """The root-down branch of the joints that carry ``sites`` (or are named: a joint's own
+    name carries its origin; cached per skeleton)."""
     cache: dict[tuple[str, ...], _Branch] = skel.__dict__.setdefault("_fk_parts", {})
     found = cache.get(sites)
     if found is None:
-        carriers = {skel.joint_index(skel.site(name).joint) for name in sites}
+        carriers = {
+            skel.joint_index(name if name in skel.joint_names else skel.site(name).joint)
+            for name in sites
+        }
         keep = skel.ancestor[list(carriers)].any(axis=0)  # (ancestor[j, k]: k is j or above it)
         found = cache[sites] = _subtree(skel, np.flatnonzero(keep))
     return found
@@ -496,6 +500,34 @@ def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
         start = _homogeneous(R[c, above], p[c, above])
         R[c, branch.joints], p[c, branch.joints] = _forward_branch(skel, branch, qa[c], start)
     return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
+
+
+def forward_changed(
+    skel: Skeleton,
+    q: ArrayLike,
+    root_position: ArrayLike | None,
+    root_rotation: ArrayLike | None,
+    base_q: FloatArray,
+    base: Pose,
+) -> Pose:
+    """``forward(skel, q, root_position, root_rotation, with_axes=False)`` of configurations
+    ``q`` (n, D) given ``base``, that call's pose of ``base_q`` (n, D) with the same root: only
+    the branches below the topmost joints whose dofs differ (bit for bit) are placed again
+    (``forward_below``), so the same numbers. A path smoothed again moves one arm: its trunk
+    and legs are not posed a second time."""
+    qa = np.asarray(q, dtype=float)
+    if len(qa) == 0 or qa.shape != np.shape(base_q):
+        return forward(skel, qa, root_position, root_rotation, with_axes=False)
+    bits = np.ascontiguousarray(qa).view(np.int64) != np.ascontiguousarray(base_q).view(np.int64)
+    joints = np.unique(skel.dof_joint[np.flatnonzero(bits.any(axis=0))])
+    # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
+    tops = joints[skel.ancestor[np.ix_(joints, joints)].sum(axis=1) == 1].tolist()
+    if any(skel.parent[top] < 0 for top in tops):  # the root's own dofs: every joint moves
+        return forward(skel, qa, root_position, root_rotation, with_axes=False)
+    pose = base
+    for top in tops:
+        pose = forward_below(skel, qa, pose, top)
+    return pose
 
 
 def dof_world_axes(skel: Skeleton, pose: Pose, q: ArrayLike, dofs: Sequence[int]) -> FloatArray:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import forward, part_site_positions, site_positions
 from mtlc.body.capsules import limbs_of_sides, self_intersection
 from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
 from mtlc.body.ik.clearance import keep_clear
@@ -544,11 +544,10 @@ def lowest_hand_points(
     same products as one)."""
     names = [n for s in segs for n in (s.goal.effector, FINGERTIPS.get(s.goal.effector, "")) if n]
     k = len(qs)
-    pose = forward(
+    return part_site_positions(
         state.skel, qs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
-        with_axes=False,
-    )  # fmt: skip
-    return np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=1)
+        names,
+    )[..., 1].min(axis=1)  # fmt: skip
 
 
 def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:

@@ -62,16 +62,16 @@ def _grasps(ir: MotionIR, side: str) -> list[tuple[float, float, Segment | None]
         (s for s in ir.on_track(HAND_TRACK[side]) if s.kind == "grip"), key=lambda s: s.start
     )
     out = []
+    contacts = [r for r in ir.on_track(ARM_TRACK[side]) if r.kind == "TO"]
+    duration = ir.duration  # (each a scan of every segment: once, not once per grip)
     for k, g in enumerate(grips):
         if g.goal.params.get("state") != "closed":
             continue
         opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
         reach = max(
-            (r for r in ir.on_track(ARM_TRACK[side]) if r.kind == "TO" and r.end <= g.start + EPS),
-            key=lambda r: r.end,
-            default=None,
+            (r for r in contacts if r.end <= g.start + EPS), key=lambda r: r.end, default=None
         )
-        out.append((g.start, min(opens, default=ir.duration), reach))
+        out.append((g.start, min(opens, default=duration), reach))
     return out
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import part_site_positions
 from mtlc.body.ik import Goal, solve_ta, solve_to
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.approach import (
@@ -74,11 +74,11 @@ def _distances(
 ) -> FloatArray:
     """(K, H) distance of each hand to its target for K configurations."""
     k = configs.shape[0]
-    pose = forward(
+    # the hands' chains only (``part_site_positions``: the whole body's numbers)
+    pts = part_site_positions(
         skel, configs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
-        with_axes=False,
-    )  # fmt: skip
-    pts = np.asarray(site_positions(skel, pose, effectors)).reshape(k, len(effectors), 3)
+        effectors,
+    ).reshape(k, len(effectors), 3)  # fmt: skip
     return np.linalg.norm(pts - np.stack(targets)[None], axis=-1)
 
 
@@ -243,11 +243,10 @@ def above_ground(
     """
     names = [n for e in effectors for n in (e, FINGERTIPS.get(e, e))]
     k = len(path)
-    pose = forward(
+    low = part_site_positions(
         state.skel, path, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
-        with_axes=False,
-    )  # fmt: skip
-    low = np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=-1)
+        names,
+    )[..., 1].min(axis=-1)  # fmt: skip
     below = np.flatnonzero(low < state.ir.ground - GROUND_SLACK)
     if below.size == 0 or below[0] == 0:  # nothing below, or already below where TA left it
         return path, dist

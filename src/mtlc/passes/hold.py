@@ -31,6 +31,7 @@ it reached; MT0520, which this pass used to raise for the same fault, is retired
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from dataclasses import dataclass
 from typing import Any
 
@@ -108,13 +109,29 @@ def carried_postures(ir: MotionIR) -> dict[str, list[Segment]]:
             s.start for s in ir.on_track(track)
             if s.kind in ("TA", "TO") and "stroke" not in s.goal.params
         ]  # fmt: skip
-        for k, g in enumerate(grips):
-            if _is_open(g):
+        moves = sorted((*goals, *walks))  # a grip takes its part if one starts before it opens
+        for closing in _closing_opens(grips):
+            if closing is None:
                 continue
-            opens = min((o.start for o in grips[k + 1 :] if _is_open(o)), default=np.inf)
-            takes = [t for t in (*goals, *walks) if g.start - EPS <= t < opens - EPS]
-            if takes:
+            g, opens = closing
+            first = bisect_left(moves, g.start - EPS)
+            if first < len(moves) and moves[first] < opens - EPS:
                 out[track] += [p for p in postures if g.start - EPS <= p.start < opens - EPS]
+    return out
+
+
+def _closing_opens(grips: list[Segment]) -> list[tuple[Segment, float] | None]:
+    """Per grip of one hand (in time order): a closing grip and the start of the first release
+    after it (inf: none), None for a release. One scan back instead of a scan of the later
+    grips per grip (a long procedure has hundreds)."""
+    out: list[tuple[Segment, float] | None] = [None] * len(grips)
+    opens = np.inf
+    for k in range(len(grips) - 1, -1, -1):
+        g = grips[k]
+        if _is_open(g):
+            opens = g.start
+        else:
+            out[k] = (g, opens)
     return out
 
 
@@ -136,27 +153,44 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
     out = []
     carried = carried_postures(ir)
     duration = ir.duration  # (a scan of every segment: once, not once per contact)
+    walks_sorted = sorted(walks)
     for track, hand in ARM_HAND.items():
         arm = sorted(by_track.get(track, []), key=lambda s: s.start)
         grips = sorted(
             (s for s in by_track.get(hand, []) if s.kind == "grip"), key=lambda s: s.start
         )
+        # each list sorted: the earliest of each kind after a contact is a bisection, not a scan
+        # (a long procedure's hundreds of contacts each scanned every segment)
+        arm_starts = [s.start for s in arm]
+        grip_starts = [g.start for g in grips]
+        carried_starts = sorted(p.start for p in carried[track])
+        # a hand that only touched its site (no grip closed on it) lets go when the body
+        # changes posture: holding an overhead latch through a squat would stretch the arm
+        # to its limit and then drop it, and pin the trunk of the reaches after it
+        free = sorted(t for t in postures if not _closed_at(grips, t))
         for seg in arm:
             if seg.kind != "TO" or "stroke" in seg.goal.params:
                 continue
-            after = seg.end
-            ends = [s.start for s in arm if s.start >= after - EPS and s is not seg]
-            ends += [t for t in walks if t >= after - EPS]
-            # a part the hand takes somewhere goes with the body through a posture, as with a walk
-            ends += [p.start for p in carried[track] if p.start >= after - EPS]
-            # a hand that only touched its site (no grip closed on it) lets go when the body
-            # changes posture: holding an overhead latch through a squat would stretch the arm
-            # to its limit and then drop it, and pin the trunk of the reaches after it
-            ends += [t + LET_GO for t in postures if t >= after - EPS and not _closed_at(grips, t)]
+            after = seg.end - EPS
+            ends = []
+            i = bisect_left(arm_starts, after)
+            if i < len(arm) and arm[i] is seg:
+                i += 1  # (the contact itself, when it ends where it starts)
+            if i < len(arm):
+                ends.append(arm_starts[i])
+            for times in (walks_sorted, carried_starts):
+                # a part the hand takes somewhere goes with the body through a posture, as
+                # with a walk
+                i = bisect_left(times, after)
+                if i < len(times):
+                    ends.append(times[i])
+            i = bisect_left(free, after)
+            if i < len(free):
+                ends.append(free[i] + LET_GO)
             end = min(ends, default=duration)
-            inside = [g for g in grips if after - EPS <= g.start < end - EPS]
-            if inside and _is_open(inside[-1]):  # let go and not taken again: the hold ends
-                end = min(end, inside[-1].end)
+            last = bisect_left(grip_starts, end - EPS) - 1  # the last grip event before the end
+            if last >= 0 and grip_starts[last] >= after and _is_open(grips[last]):
+                end = min(end, grips[last].end)  # let go and not taken again: the hold ends
             out.append((seg, end))
     return out
 

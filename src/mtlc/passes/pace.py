@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import forward, part_site_positions, site_positions
-from mtlc.body.capsules import limbs_of_sides, self_intersection
+from mtlc.body import Pose, forward_part, part_site_positions, site_positions
+from mtlc.body.capsules import limbs_of_sides, measured_points, self_intersection
+from mtlc.body.kinematics import forward_changed
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
@@ -254,13 +255,17 @@ class ReachPath:
         return pchip(self.progress, self.q)(s)
 
 
-def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> tuple[float, FloatArray]:
+def approach_depth(
+    ir: MotionIR, m: Movement, body: Frames, like: tuple[Frames, Pose | None] | None = None
+) -> tuple[float, FloatArray, Pose | None]:
     """How far (m) the movement's effectors go behind their sites' surfaces (within
     ``NORMAL_BAND`` of the normal line), their hands' fingertips below the ground, or its arms'
     forearms and hands into the trunk or a thigh: what a wider smoothing must not make worse
     (the approach comes in from the site's side; a corner cut short took a forearm 56 mm into
     a thigh on the fuel filter, male P99). And the effectors' positions (N, E, 3), what
-    ``progress`` measures."""
+    ``progress`` measures, and the body's pose if it was posed (else None). ``like``: another
+    path at the same root and its pose from this function: only the joints below the dofs in
+    which the two differ are posed again (``forward_changed``: the same numbers)."""
     skel = ir.skeleton
     effectors = m.effectors
     names = effectors + [FINGERTIPS[e] for e in effectors if e in FINGERTIPS]
@@ -270,7 +275,16 @@ def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> tuple[float, Floa
     mine = limbs_of_sides({e[0] for e in effectors})
     pose = None
     if mine:
-        pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
+        was, base = like if like is not None else (body, None)
+        if base is not None and _same_root(was, body):
+            pose = forward_changed(
+                skel, body.q, body.root_position, body.root_rotation, was.q, base
+            )
+        else:  # the joints the sites and the arms' clearance read, not the whole body
+            pose = forward_part(
+                skel, body.q, body.root_position, body.root_rotation,
+                [*names, *measured_points(skel, mine)],
+            )  # fmt: skip
         p = site_positions(skel, pose, names)
     else:
         p = part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)
@@ -288,7 +302,17 @@ def approach_depth(ir: MotionIR, m: Movement, body: Frames) -> tuple[float, Floa
         near = np.linalg.norm(rel - d[:, None] * n, axis=1) < NORMAL_BAND
         if near.any():
             deepest = max(deepest, -float(d[near].min()))
-    return deepest, p[:, : len(effectors)]
+    return deepest, p[:, : len(effectors)], pose
+
+
+def _same_root(a: Frames, b: Frames) -> bool:
+    """Whether two paths' roots are the same, bit for bit."""
+    return all(
+        x is y or (np.shape(x) == np.shape(y) and np.array_equal(
+            np.ascontiguousarray(x).view(np.int64), np.ascontiguousarray(y).view(np.int64)
+        ))
+        for x, y in ((a.root_position, b.root_position), (a.root_rotation, b.root_rotation))
+    )  # fmt: skip
 
 
 def _smoothed(
@@ -457,13 +481,13 @@ def reach_path(
         u2, _ = progress(ir, m, chosen)
         return ReachPath(u2, chosen.q[:, idx], carried=True)
     chosen = _smoothed(ir, m, body, idx, held, SMOOTH_SIGMA)
-    allowed, at = approach_depth(ir, m, chosen)
+    allowed, at, pose = approach_depth(ir, m, chosen)
     allowed += APPROACH_SPARE
     # a part in both hands keeps 10 %: smoothed wider after it is made rigid, the correction
     # is undone (tests/data/arms a02's box squeezed by 83 mm, male P99)
     for sigma in () if held else SMOOTH_SIGMAS:
         wider = _smoothed(ir, m, body, idx, held, sigma)
-        depth, at_wider = approach_depth(ir, m, wider)
+        depth, at_wider, _ = approach_depth(ir, m, wider, like=(chosen, pose))
         if depth <= allowed:
             chosen, at = wider, at_wider
             break

@@ -56,6 +56,7 @@ def idle_spells(ir: MotionIR, side: str) -> list[tuple[Segment, float]]:
         (s for s in ir.on_track("root") if s.kind == "posture"), key=lambda s: s.start
     )
     spells = []
+    duration = ir.duration  # (a scan of every segment: once, not once per release)
     for g in own:
         if g.kind != "grip" or g.goal.params.get("state") != "open":
             continue
@@ -64,7 +65,7 @@ def idle_spells(ir: MotionIR, side: str) -> list[tuple[Segment, float]]:
         if site is None or float(site[1]) - ir.ground < ARM_REST_MIN_HEIGHT:
             continue  # let go low, the arm is down already
         after = [s.start for s in own if s.start >= g.end - EPS and s is not g]
-        end = min(after, default=ir.duration)
+        end = min(after, default=duration)
         before = [p for p in postures if p.start < g.end + EPS]
         if before and before[-1].goal.params.get("posture") not in UPRIGHT:
             continue  # squatting or kneeling: the posture places the free arms

@@ -143,8 +143,7 @@ def keep_until_keyed(
         up = minimum_jerk(np.clip((t - a) / (b - a), 0.0, 1.0)) * (t >= a - EPS)
     else:  # a step: the frames from ``a`` on
         up = (t >= a - EPS).astype(float)
-    names = set(until) if until is not None else {skel.dof_names[d] for d in dofs}
-    span = next_movement(ir, names, a)
+    span = _let_go(skel, ir, dofs, a, until)
     down = np.ones_like(t)
     end = np.inf
     if span is not None:  # kept until that movement, let go of over it
@@ -156,6 +155,31 @@ def keep_until_keyed(
     frames.q[np.ix_(rows, dofs)] = np.clip(moved, skel.lower[dofs], skel.upper[dofs])
     if span is not None and span.start >= a + EPS:  # let go of over a reach: one bell again
         repace(skel, frames, span, dofs)
+
+
+def _let_go(
+    skel: Skeleton, ir: MotionIR, dofs: list[int], a: float, until: Collection[str] | None
+) -> Keyed | None:
+    """The movement over which ``keep_until_keyed`` lets go of its correction (None: none)."""
+    names = set(until) if until is not None else {skel.dof_names[d] for d in dofs}
+    return next_movement(ir, names, a)
+
+
+def kept_rows(
+    skel: Skeleton, ir: MotionIR, frames: Frames, dofs: list[int], rise: tuple[float, float],
+    until: Collection[str] | None = None,
+) -> slice:  # fmt: skip
+    """The frames ``keep_until_keyed`` may change (the ramp's, the hold's and the let-go
+    movement's, which ``repace`` re-times): what a caller that may undo it keeps a copy of,
+    instead of every frame of the motion for every walk."""
+    t = frames.time
+    lo = int(np.searchsorted(t, rise[0] - EPS))
+    span = _let_go(skel, ir, dofs, rise[0], until)
+    if span is None:
+        return slice(lo, len(t))
+    end = max(span.end, span.start + MIN_FADE)
+    hi = max(int(np.searchsorted(t, end)), int(np.searchsorted(t, span.end + EPS, "right")))
+    return slice(lo, max(lo, hi))
 
 
 def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray]) -> list[str]:
@@ -191,23 +215,27 @@ def settle_walk(
         offset = rest[dofs] - frames.q[i, dofs]
         if float(np.abs(offset).max()) <= NEAR:
             continue
-        length = ramp_length(offset, end - start)
-        before = frames.q.copy()
-        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length))
-        if _deeper(skel, frames, before, track[0]):
-            frames.q[:] = before
+        rise = (start, start + ramp_length(offset, end - start))
+        # a copy of the frames it may change (of every frame, per walk and arm, it was a fifth
+        # of the pass on a long procedure)
+        kept = kept_rows(skel, ir, frames, dofs, rise)
+        before = frames.q[kept].copy()
+        keep_until_keyed(skel, ir, frames, dofs, offset, rise)
+        if _deeper(skel, frames, kept, before, track[0]):
+            frames.q[kept] = before
 
 
-def _deeper(skel: Skeleton, frames: Frames, before: FloatArray, side: str) -> bool:
-    """Whether the frames changed from ``before`` take the arm of ``side`` deeper into the
-    body's clearance than it was (and into it): an arm let down from where a place left it
-    swept a forearm 103 mm through a thigh (vehicle_battery female P95), and the clearance
-    pass, pushing it out, moved the place before it off its site."""
-    rows = np.flatnonzero(np.abs(frames.q - before).max(axis=1) > 0.0)
-    if rows.size == 0:
+def _deeper(skel: Skeleton, frames: Frames, kept: slice, before: FloatArray, side: str) -> bool:
+    """Whether the frames ``kept`` changed from ``before`` (the others did not change) take the
+    arm of ``side`` deeper into the body's clearance than it was (and into it): an arm let down
+    from where a place left it swept a forearm 103 mm through a thigh (vehicle_battery female
+    P95), and the clearance pass, pushing it out, moved the place before it off its site."""
+    changed = np.flatnonzero(np.abs(frames.q[kept] - before).max(axis=1) > 0.0)
+    if changed.size == 0:
         return False
+    rows = kept.start + changed
     root = (frames.root_position[rows], frames.root_rotation[rows])
-    was = penetrations(skel, before[rows], root, (side,))[side]
+    was = penetrations(skel, before[changed], root, (side,))[side]
     now = penetrations(skel, frames.q[rows], root, (side,))[side]
     return bool((now > np.maximum(was, 0.0)).any())
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import forward_part, site_positions
 from mtlc.body.ik import ChainModel, Goal, IKResult
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.interpolate import (
@@ -327,10 +327,12 @@ class PoseState:
         return found
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
-        """World position of one body site (or joint centre, with ``joint:`` prefix)."""
-        pose = forward(self.skel, q[None], root[0][None], root[1][None], with_axes=False)
+        """World position of one body site (or joint centre, with ``joint:`` prefix): the
+        chain that carries it only (``forward_part``: the whole body's numbers)."""
+        carrier = name[6:] if name.startswith("joint:") else name
+        pose = forward_part(self.skel, q[None], root[0][None], root[1][None], [carrier])
         if name.startswith("joint:"):
-            return np.asarray(pose.p[0, self.skel.joint_index(name[6:])])
+            return np.asarray(pose.p[0, self.skel.joint_index(carrier)])
         return np.asarray(site_positions(self.skel, pose, name)[0])
 
 

@@ -42,6 +42,7 @@ from ..capsules import (
     clearance,
     clearance_directions,
     limb_radius,
+    measured_points,
     side_limbs,
 )
 from ..kinematics import (
@@ -50,6 +51,7 @@ from ..kinematics import (
     dof_world_axes,
     forward,
     forward_below,
+    forward_part,
     repeated_rows,
     rotate_about,
     site_positions,
@@ -143,7 +145,8 @@ def penetrations(
         heads, at = runs
         once = penetrations(skel, q[heads], (root[0][heads], root[1][heads]), sides)
         return {side: depth[at] for side, depth in once.items()}
-    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    limbs = tuple(limb for side in sides for limb in side_limbs(side))
+    pose = forward_part(skel, q, root[0], root[1], measured_points(skel, limbs))
     return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
 
 

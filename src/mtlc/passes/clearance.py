@@ -71,7 +71,10 @@ RESEED_TURN = 0.3
 HELD_TOL = 5e-4  # m a held hand's site may end from where the solve kept it, widened in time
 HELD_TURN = math.radians(1.0)  # ...and its orientation
 HELD_ROUNDS = 3  # ...widened and put back this many times: putting it back turns the arm a little
-HELD_DEEPER = 1e-3  # m deeper than the solve left it a widened held arm may go
+HELD_DEEPER = 1e-3  # m deeper than the solve left it a widened held arm may end
+# rad a dof may turn from the widened pose to put the hand back: more is a new branch, not the
+# widening's (an arm 80 mm inside a panel's screw stood 13 deg out of both neighbours)
+HELD_SEED_TURN = math.radians(4.0)
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -189,9 +192,6 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         if moved.size:
             result = result.copy()
             result[moved] = q[moved] + widened[moved]
-        result = continued(
-            skel, q, result, root, side, frames.time, keep > FREE + EPS, inside[side]
-        )
         kept = result
         for _ in range(HELD_ROUNDS):
             result = held_in_time(skel, q, result, kept, root, side, frames.time, keep > FREE + EPS)
@@ -216,9 +216,10 @@ def held_in_time(
     started earlier and let go later (``speed_limited``), and the hand then put back on the
     pose it has at ``kept`` (the solve's), the arm's own dofs solved from the widened pose
     (damped least squares: the least change from it, so the widening's continuity stays). A
-    frame takes
-    that where its hand comes back within ``HELD_TOL`` and ``HELD_TURN`` and its arm is not
-    ``HELD_DEEPER`` deeper than the solve left it.
+    frame takes that where its hand comes back within ``HELD_TOL`` and ``HELD_TURN``, no dof
+    turns ``HELD_SEED_TURN`` from the widened pose and its arm is not ``HELD_DEEPER`` deeper
+    than at ``kept``; a run of frames that makes a faster step than before is given back
+    (``worse_runs_undone``).
 
     The solve is frame by frame: where a carried part passes the trunk, its arm must swing
     out within a few frames, and the solve lands on one side of the arm's redundancy one
@@ -238,54 +239,35 @@ def held_in_time(
     seed = skel.clip(q[rows] + wide[rows])
     moved, ok = hand_restored(skel, seed, kept[rows], sub_root, side)
     deeper = penetration(skel, moved, sub_root, side) - np.maximum(
-        penetration(skel, solved[rows], sub_root, side), 0.0
+        penetration(skel, kept[rows], sub_root, side), 0.0
     )
-    ok &= deeper <= HELD_DEEPER
+    ok &= (deeper <= HELD_DEEPER) & (np.abs(moved - seed).max(axis=1) <= HELD_SEED_TURN)
     out[rows[ok]] = moved[ok]
-    return out
+    return worse_runs_undone(q, solved, out, t)
 
 
-def continued(
-    skel: Skeleton,
-    q: FloatArray,
-    solved: FloatArray,
-    root: tuple[FloatArray, FloatArray],
-    side: str,
-    t: FloatArray,
-    held: np.ndarray,
-    inside: FloatArray,
+def worse_runs_undone(
+    q: FloatArray, before: FloatArray, after: FloatArray, t: FloatArray
 ) -> FloatArray:
-    """``solved`` (the corrected frames ``q``) where a ``held`` (N,) hand's arm, ``inside``
-    (N,) at ``q``, turns a joint faster than ``CORRECTED_JOINT_SPEED`` and faster than the
-    motion into a frame: that frame started from the previous frame's correction instead,
-    the hand put back on its site (``hand_restored``), in time order, so a run continues one
-    solution. Taken where the arm ends no deeper than ``LEFT_DEPTH`` (or than the frame's own
-    solve) and the step is smaller. The solve is frame by frame and a short pass of a carried
-    part through the trunk flipped from one side of the arm's redundancy to the other in one
-    frame: the fuel filter's bowl turned the wrist 26 deg in an output frame (issue 19)."""
-    out = np.array(solved, dtype=float)
-    limit = CORRECTED_JOINT_SPEED * np.diff(t)
+    """``after`` with each run of frames it changed from ``before`` given back where its
+    fastest step over ``CORRECTED_JOINT_SPEED`` (and over the motion ``q``'s own), from the
+    frame before the run to the frame after it, is larger than ``before``'s: putting a held
+    hand back can turn an arm the other way, and a widening must not make a step."""
+    changed = (after != before).any(axis=1)
+    if not changed.any():
+        return after
+    room = np.maximum(np.abs(np.diff(q, axis=0)), (CORRECTED_JOINT_SPEED * np.diff(t))[:, None])
 
-    def step(i: int, pose: FloatArray) -> float:
-        """How much faster than allowed the step from frame i - 1 to ``pose`` is (rad)."""
-        room = np.maximum(np.abs(q[i] - q[i - 1]), limit[i - 1])
-        return float(np.max(np.abs(pose - out[i - 1]) - room))
+    def excess(poses: FloatArray) -> FloatArray:
+        return (np.abs(np.diff(poses, axis=0)) - room).max(axis=1)  # (N - 1,)
 
-    for i in range(1, len(q)):
-        if not (held[i] and inside[i] > 0.0) or step(i, out[i]) <= 1e-9:
-            continue
-        rows = slice(i, i + 1)
-        sub_root = (root[0][rows], root[1][rows])
-        seed = skel.clip(q[rows] + (out[i - 1] - q[i - 1]))
-        put, ok = hand_restored(skel, seed, q[rows], sub_root, side, turn=False)
-        depth = penetration(
-            skel,
-            np.concatenate([put, out[rows]]),
-            (np.concatenate([sub_root[0]] * 2), np.concatenate([sub_root[1]] * 2)),
-            side,
-        )
-        if ok[0] and depth[0] <= max(LEFT_DEPTH, depth[1]) and step(i, put[0]) < step(i, out[i]):
-            out[i] = put[0]
+    was, now = excess(before), excess(after)
+    out = after.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], changed.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        span = slice(max(a - 1, 0), min(b, len(was)))  # the steps into, within and out of it
+        if now[span].max() > max(was[span].max(), 0.0) + 1e-9:
+            out[a:b] = before[a:b]
     return out
 
 

@@ -1019,7 +1019,7 @@ def balance_frames(
     if approaching:
         approach_arms(skel, frames, q_start, root_start, segs.approaches)
         moving = hand_pins(ir, t, segs.approaches)
-        held_still = {hand: pins[hand] & ~moving[hand] for hand in pins}
+        held_still = {hand: pins[hand] | moving[hand] for hand in pins}
     frames.q[:] = arms_in_time(skel, q_start, frames.q, t, held_still)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed

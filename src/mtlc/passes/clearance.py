@@ -29,8 +29,15 @@ import math
 
 import numpy as np
 
-from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
-from mtlc.body.kinematics import forward, site_positions
+from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.ik.clearance import (
+    arm_dofs,
+    keep_clear,
+    penetration,
+    penetration_dofs,
+    penetrations,
+)
+from mtlc.body.kinematics import forward, site_positions, site_rotation
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
@@ -61,6 +68,13 @@ RESEED_ROUNDS = 3  # ...and solved again from its neighbours at most this many t
 # rad a reseeded frame's dof may end from its neighbours' poses, interpolated: more is a new
 # spike (the frame-by-frame solve's own wrist turns differ 10-20 deg between frames)
 RESEED_TURN = 0.3
+HELD_TOL = 5e-4  # m a held hand's site may end from where the solve kept it, widened in time
+HELD_TURN = math.radians(1.0)  # ...and its orientation
+HELD_ROUNDS = 3  # ...widened and put back this many times: putting it back turns the arm a little
+HELD_DEEPER = 1e-3  # m deeper than the solve left it a widened held arm may end
+# rad a dof may turn from the widened pose to put the hand back: more is a new branch, not the
+# widening's (an arm 80 mm inside a panel's screw stood 13 deg out of both neighbours)
+HELD_SEED_TURN = math.radians(4.0)
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -178,10 +192,107 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         if moved.size:
             result = result.copy()
             result[moved] = q[moved] + widened[moved]
+        kept = result
+        for _ in range(HELD_ROUNDS):
+            result = held_in_time(skel, q, result, kept, root, side, frames.time, keep > FREE + EPS)
         frames.q = result
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
+
+
+def held_in_time(
+    skel: Skeleton,
+    q: FloatArray,
+    solved: FloatArray,
+    kept: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    t: FloatArray,
+    held: np.ndarray,
+) -> FloatArray:
+    """``solved`` (the corrected frames ``q``) with the correction of a ``held`` (N,) hand's
+    arm widened in time too, where it turns a joint faster than ``CORRECTED_JOINT_SPEED``:
+    started earlier and let go later (``speed_limited``), and the hand then put back on the
+    pose it has at ``kept`` (the solve's), the arm's own dofs solved from the widened pose
+    (damped least squares: the least change from it, so the widening's continuity stays). A
+    frame takes that where its hand comes back within ``HELD_TOL`` and ``HELD_TURN``, no dof
+    turns ``HELD_SEED_TURN`` from the widened pose and its arm is not ``HELD_DEEPER`` deeper
+    than at ``kept``; a run of frames that makes a faster step than before is given back
+    (``worse_runs_undone``).
+
+    The solve is frame by frame: where a carried part passes the trunk, its arm must swing
+    out within a few frames, and the solve lands on one side of the arm's redundancy one
+    frame and on the other the next. ``speed_limited`` leaves a held hand's correction as it
+    is (moving it alone would take the hand off its goal): the fuel filter's bowl carried past
+    the trunk turned the wrist and the shoulder 14-26 deg in an output frame (issue 19)."""
+    correction = solved - q
+    wide = speed_limited(q, correction, skel.lower, skel.upper, t, CORRECTED_JOINT_SPEED)
+    changed = (wide != correction).any(axis=1)
+    rows = np.flatnonzero(changed & held)
+    if rows.size == 0:
+        return solved
+    out = np.array(solved, dtype=float)
+    free = np.flatnonzero(changed & ~held)
+    out[free] = q[free] + wide[free]
+    sub_root = (root[0][rows], root[1][rows])
+    seed = skel.clip(q[rows] + wide[rows])
+    moved, ok = hand_restored(skel, seed, kept[rows], sub_root, side)
+    deeper = penetration(skel, moved, sub_root, side) - np.maximum(
+        penetration(skel, kept[rows], sub_root, side), 0.0
+    )
+    ok &= (deeper <= HELD_DEEPER) & (np.abs(moved - seed).max(axis=1) <= HELD_SEED_TURN)
+    out[rows[ok]] = moved[ok]
+    return worse_runs_undone(q, solved, out, t)
+
+
+def worse_runs_undone(
+    q: FloatArray, before: FloatArray, after: FloatArray, t: FloatArray
+) -> FloatArray:
+    """``after`` with each run of frames it changed from ``before`` given back where its
+    fastest step over ``CORRECTED_JOINT_SPEED`` (and over the motion ``q``'s own), from the
+    frame before the run to the frame after it, is larger than ``before``'s: putting a held
+    hand back can turn an arm the other way, and a widening must not make a step."""
+    changed = (after != before).any(axis=1)
+    if not changed.any():
+        return after
+    room = np.maximum(np.abs(np.diff(q, axis=0)), (CORRECTED_JOINT_SPEED * np.diff(t))[:, None])
+
+    def excess(poses: FloatArray) -> FloatArray:
+        return (np.abs(np.diff(poses, axis=0)) - room).max(axis=1)  # (N - 1,)
+
+    was, now = excess(before), excess(after)
+    out = after.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], changed.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        span = slice(max(a - 1, 0), min(b, len(was)))  # the steps into, within and out of it
+        if now[span].max() > max(was[span].max(), 0.0) + 1e-9:
+            out[a:b] = before[a:b]
+    return out
+
+
+def hand_restored(
+    skel: Skeleton,
+    seed: FloatArray,
+    kept: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    turn: bool = True,
+) -> tuple[FloatArray, np.ndarray]:
+    """The poses ``seed`` (N, D) with the ``side`` hand put back where it is at ``kept``
+    (its site, and with ``turn`` its orientation) by the arm's own dofs, damped least squares
+    from ``seed`` (the least change from it: the redundancy stays where ``seed`` has it), and
+    (N,) whether the hand came back within ``HELD_TOL`` (and ``HELD_TURN``)."""
+    site = f"{side}_hand"
+    at = forward(skel, kept, *root)
+    rotation = site_rotation(skel, at, site) if turn else None
+    goal = [Goal(site, position=site_positions(skel, at, site), orientation=rotation)]
+    model = prepare(skel, goal, seed, dofs=arm_dofs(skel, side), root_position=root[0],
+                    root_rotation=root[1])  # fmt: skip
+    res = solve_ta(skel, goal, seed, model=model, restarts=0, null_gain=0.0, tol=HELD_TOL / 2,
+                   orientation_tol=HELD_TURN / 2, max_iter=40)  # fmt: skip
+    ok = (res.position_error <= HELD_TOL) & (res.orientation_error <= HELD_TURN)
+    return res.q, ok
 
 
 def reseeded(
@@ -238,6 +349,22 @@ def reseeded(
         between = (1.0 - share) * out[b] + share * out[a]  # the neighbours' poses
         cleared = (new_depth < LEFT_DEPTH) & (np.abs(again - between).max(axis=1) <= RESEED_TURN)
         cleared &= hand_moved(skel, q[rows], again, sub_root, side) <= RESEED_HAND_TOL
+        # the solve from the seed can fall back into the frame's own local minimum (the hand's
+        # pose weighs much more than the depth, and the neighbours cleared by yielding its
+        # orientation): the seed with only the hand's site put back, its redundancy and its
+        # orientation where the neighbours have them (a male P99's right arm stuck 19 mm
+        # inside the trunk between two frames 2-3 mm in, the fuel filter's bowl carried)
+        rest = np.flatnonzero(~cleared)
+        if rest.size:
+            sub_rest = (sub_root[0][rest], sub_root[1][rest])
+            put, ok = hand_restored(skel, seed[rest], q[rows[rest]], sub_rest, side, turn=False)
+            put_depth = penetration(skel, put, sub_rest, side)
+            ok &= (put_depth < LEFT_DEPTH) & (
+                np.abs(put - between[rest]).max(axis=1) <= RESEED_TURN
+            )
+            again[rest[ok]] = put[ok]
+            new_depth[rest[ok]] = put_depth[ok]
+            cleared[rest[ok]] = True
         out[rows[cleared]] = again[cleared]
         depth[rows[cleared]] = new_depth[cleared]
         if not cleared.any():

@@ -590,8 +590,8 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
-        'left_shoulder': (27.534, 15.327, 5.742), 'left_elbow': (62.757, 44.044),
-        'left_wrist': (-58.878, 12.076),
+        'left_shoulder': (27.81, 17.521, 9.858), 'left_elbow': (62.836, 43.598),
+        'left_wrist': (-60.673, 8.161),
     })
     human.KeyJoints(10.8, {
         'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
@@ -599,7 +599,7 @@ def replace_fuel_filter_cad():
         'left_wrist': (-59.844, -9.223),
     })
     human.KeyJoints(10.9, {
-        'left_shoulder': (-7.22, 22.747, -31.358), 'left_elbow': (95.002, 40.115),
+        'left_shoulder': (-7.22, 22.747, -31.345), 'left_elbow': (95.002, 40.115),
         'left_wrist': (-59.524, 13.846),
     })
     human.KeyJoints(11.0, {

@@ -10,7 +10,6 @@ operations. Per-call overhead, not arithmetic, is what a single solve pays for.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -58,15 +57,11 @@ class _Structure:
     frozen_dofs: list[tuple[int, int, list[tuple[int, FloatArray, FloatArray]]]]
 
 
-_STRUCTURES: weakref.WeakKeyDictionary[Skeleton, dict[tuple[Any, ...], _Structure]] = (
-    weakref.WeakKeyDictionary()
-)
-
-
 def _structure(skel: Skeleton, sites: tuple[str, ...], active: NDArray[np.intp]) -> _Structure:
-    """The shared ``_Structure`` of a problem (a skeleton's derived arrays never change)."""
+    """The shared ``_Structure`` of a problem, cached on the skeleton as ``kinematics._part``
+    caches its branches (a skeleton's derived arrays never change)."""
     key = (sites, active.tobytes())
-    cache = _STRUCTURES.setdefault(skel, {})
+    cache: dict[tuple[Any, ...], _Structure] = skel.__dict__.setdefault("_chain_structures", {})
     found = cache.get(key)
     if found is None:
         found = cache[key] = _build_structure(skel, sites, active)

@@ -637,3 +637,37 @@ def test_a_twist_takes_the_time_a_forearm_needs(tmp_path: Path) -> None:
         round(p.duration, 9) for p in driver.primitives if p.params.get("posture") == "twist"
     }
     assert d_tool == pytest.approx(1.5 * 90.0 / 570.0)
+
+
+def test_a_repeated_series_is_solved_once_and_moves_as_solved_afresh(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a loop unscrewing one bolt twice asks ``_solve_keys`` the same question for the second
+    # series (the same reach pose, arc and clock): answered from the compile's cache, it must
+    # give the motion solving it again gives, and the cache must hand out copies
+    path = tmp_path / "t.mtask"
+    path.write_text(TASK.format(setting="tool wrench_10mm", turns=1, args="").replace(
+        "    unscrew(right, bolt, turns: 1)", "    repeat 2 {\n        unscrew(right, bolt, turns: 1)\n    }"
+    ), encoding="utf-8")  # fmt: skip
+    program = run_frontend([path])
+    assert not program.sink.has_errors, program.diagnostics
+    timeline = schedule.for_manikin(program.timelines[0], MAN)
+    calls: list[int] = []
+    solve_keys = tool_pass._solve_keys
+
+    def counted(*args, **kw):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return solve_keys(*args, **kw)
+
+    monkeypatch.setattr(tool_pass, "_solve_keys", counted)
+    cached = run_motion(timeline, DiagnosticSink(), until="tool")
+    n_cached = len(calls)
+    monkeypatch.setattr(tool_pass, "_keys_solved", lambda cache, *a: tool_pass._solve_keys(*a))
+    fresh = run_motion(timeline, DiagnosticSink(), until="tool")
+    assert n_cached < len(calls) - n_cached  # the second series was not solved again
+    a, b = _strokes_of(cached), _strokes_of(fresh)
+    assert len(a) == len(b) == 12
+    for x, y in zip(a, b, strict=True):
+        assert x.keyframes.dofs == y.keyframes.dofs
+        assert np.array_equal(x.keyframes.time, y.keyframes.time)
+        assert np.array_equal(x.keyframes.q, y.keyframes.q)

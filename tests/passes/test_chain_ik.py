@@ -142,3 +142,26 @@ def test_evening_out_stops_at_a_fixed_point_with_the_poses_of_all_rounds(spec, m
     assert stopped_after < tool.EVEN_ROUNDS
     assert np.array_equal(got, ref)
     assert not np.array_equal(got, keys)  # the rounds moved the keys
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_no_pose_of_the_chain_is_beyond_its_reach(spec, reach) -> None:
+    """``ScalarChain.beyond`` is a bound (``tool._chain`` skips restarts where it holds, so it
+    must never call a reachable goal out of reach): the sites of random poses of the chain,
+    limits or not, are within it; a goal a little past it, and one metres away, are not."""
+    skel, sites, q0, model, chain, hand, tip = wrench_chain(spec, reach)
+    act = model.active
+    rng = np.random.default_rng(3)
+    q = np.tile(q0, (400, 1))
+    q[:, act] = rng.uniform(-np.pi, np.pi, (400, len(act)))
+    pose = forward(skel, q, np.tile(ROOT[0], (400, 1)), np.tile(ROOT[1], (400, 1)))
+    pts = site_positions(skel, pose, sites)  # (400, 2, 3)
+    assert not any(chain.beyond(p.ravel().tolist(), 0.0) for p in pts)
+    reach_of = np.linalg.norm(pts - chain.base, axis=2).max(axis=0) / np.asarray(chain.reach)
+    assert reach_of.max() <= 1.0 and reach_of.min() > 0.5  # a bound, and not a loose one
+    away = (tip - chain.base) / np.linalg.norm(tip - chain.base)
+    past = chain.base + away * (chain.reach[1] + 0.01)
+    assert chain.beyond(np.concatenate([hand, past]).tolist(), 0.005)
+    assert not chain.beyond(np.concatenate([hand, past]).tolist(), 0.02)
+    assert chain.beyond(np.concatenate([hand + 5.0, tip]).tolist(), 1e-3)

@@ -51,6 +51,18 @@ class ScalarChain:
         self.plan = chain_plan(model, live, q_base)
         self.site_offsets = [tuple(float(v) for v in skel.site(s).offset) for s in model.sites]
         self.n = model.n
+        # the first joint's origin does not move with the chain's angles; no pose puts a site
+        # further from it than the chain's links and the site's offset laid end to end
+        self.base = p0 + R0 @ skel.offsets[live[0]]
+        links = float(sum(np.linalg.norm(skel.offsets[j]) for j in live[1:]))
+        self.reach = [links + float(np.linalg.norm(skel.site(s).offset)) for s in model.sites]
+
+    def beyond(self, targets: Sequence[float], slack: float) -> bool:
+        """Whether some target is further than ``slack`` past what any pose of the chain can
+        reach (``targets``: 3 a site, in the chain's site order)."""
+        pts = np.asarray(targets, dtype=float).reshape(-1, 3)
+        far = np.linalg.norm(pts - self.base, axis=1) - np.asarray(self.reach)
+        return bool(far.max() > slack)
 
     def eval(self, q: Sequence[float]) -> tuple[list[float], list[list[float]]]:
         """Site positions (3 S,) and the Jacobian as n columns (3 S,) at active angles ``q``."""

@@ -430,7 +430,9 @@ def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:
 SOLVES_KEPT = 512  # solver results a compile remembers (a TO path is ~100 KB at most)
 
 
-def _array_key(a: Any) -> Any:
+def array_key(a: Any) -> Any:
+    """An exact, hashable key of an array (its type, shape and bytes): the same question asked
+    again is recognised bit for bit."""
     if a is None:
         return None
     x = np.asarray(a)
@@ -439,7 +441,7 @@ def _array_key(a: Any) -> Any:
 
 def _goal_key(g: Goal) -> tuple[Any, ...]:
     return (
-        g.effector, _array_key(g.position), _array_key(g.orientation), _array_key(g.aim),
+        g.effector, array_key(g.position), array_key(g.orientation), array_key(g.aim),
         g.orientation_weight,
     )  # fmt: skip
 
@@ -463,7 +465,7 @@ def solved(
     stays its own)."""
     key = (
         solver.__module__, solver.__name__, id(skel), tuple(_goal_key(g) for g in goals),
-        _array_key(q0), id(model), tuple(sorted(options.items())),
+        array_key(q0), id(model), tuple(sorted(options.items())),
     )  # fmt: skip
     store: dict[Any, tuple[IKResult, Any, ChainModel]]
     store = ctx_cache.setdefault("passes.state.solves", {})

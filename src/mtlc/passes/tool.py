@@ -40,7 +40,7 @@ from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_shor
 from mtlc.passes.chain_ik import ChainSolve, RowChain, ScalarChain, solve_rows
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.profile import minimum_jerk, placing_clock
-from mtlc.passes.state import PoseState, reanchor
+from mtlc.passes.state import SOLVES_KEPT, PoseState, array_key, reanchor
 
 LIFT = 0.03  # m the tool is lifted off the fastener to swing back
 SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener before swinging
@@ -460,13 +460,16 @@ def _chain(
         q = solve(0)
         err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
         if err > TOLERANCE:
-            q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
-            # most restarts find nothing nearer: the same pose is as short (err), not measured
             reached = False
-            if not np.array_equal(q2, q):
-                err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-                if err2 <= TOLERANCE:  # a restart short too is no better: another branch
-                    q, reached = q2, True
+            # restarts are kept only where they reach: not tried where no pose of the chain
+            # can (a fastener metres away: two restarts were 80 % of a stroke's solve)
+            if not _out_of_reach(scalar, model, prev, targets):
+                q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
+                # most restarts find nothing nearer: the same pose is as short, not measured
+                if not np.array_equal(q2, q):
+                    err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])
+                    if err2[0] <= TOLERANCE:  # a restart short too is no better: another branch
+                        q, reached = q2, True
             if until_short and not reached:
                 return None
         out[i] = prev = q[0]
@@ -481,6 +484,16 @@ def _scalar_chain(
         return ScalarChain(skel, model, root)
     except ValueError:
         return None
+
+
+def _out_of_reach(
+    scalar: ScalarChain | None, model: ChainModel, prev: FloatArray, targets: FloatArray
+) -> bool:
+    """Whether no pose of the key's chain reaches ``targets`` within ``TOLERANCE``: known where
+    the scalar chain describes ``prev``'s body (``_key_solver``'s condition), else not."""
+    if scalar is None or not np.array_equal(prev[model.baked], model.q_base[0, model.baked]):
+        return False
+    return scalar.beyond(targets, TOLERANCE)
 
 
 def _row_chain(
@@ -652,7 +665,9 @@ def _series(state: PoseState, seg: Segment, series: dict[Any, Series]) -> Series
     return series[key]
 
 
-def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSolution:
+def _solve_stroke_keys(
+    cache: dict[str, Any], state: PoseState, seg: Segment, run: Series
+) -> StrokeSolution:
     """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) as a chain
     from the series' reach pose, or reuse the solution of an identical stroke of the series."""
     g = seg.goal
@@ -672,13 +687,38 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     tips = site + LIFT * lift[:, None] * n
     clock = key_times(frac, bool(lift.max() > 0))
     first = "arm" if next((s.reach for s in run.solved.values()), "arm") == "arm" else "torso"
-    q, reach, tip_err, trunk = _solve_keys(
-        state, seg, hands, tips, run.q_reached, run.root, clock, first, run.trunk
-    )
+    args = (hands, tips, run.q_reached, run.root, clock, first, run.trunk)
+    q, reach, tip_err, trunk = _keys_solved(cache, state, seg, *args)
     run.trunk = run.trunk if trunk is None else trunk
     q, tip_err = _closed(q, tip_err, frac, lift)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]
+
+
+def _keys_solved(
+    cache: dict[str, Any], state: PoseState, seg: Segment, hands: FloatArray, tips: FloatArray,
+    q0: FloatArray, root: tuple[FloatArray, FloatArray], clock: FloatArray, first: str,
+    trunk: FloatArray | None,
+) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:  # fmt: skip
+    """``_solve_keys``, solved once per compile: a loop that screws the same fastener again
+    from the same reach pose (``for x in [s1, s1]``, ``repeat 3``) starts a new series with the
+    same question, and the solve is deterministic (fuzz cases spent 0.7 s on each of four
+    identical series). The key is exact: every input's bytes, the skeleton's identity (the
+    entry keeps it alive) and the effector, all ``_solve_keys`` reads of ``state`` and ``seg``."""
+    key = (
+        id(state.skel), seg.goal.effector, array_key(hands), array_key(tips), array_key(q0),
+        array_key(root[0]), array_key(root[1]), array_key(clock), first, array_key(trunk),
+    )  # fmt: skip
+    store = cache.setdefault("passes.tool.keys", {})
+    hit = store.get(key)
+    if hit is None:
+        if len(store) >= SOLVES_KEPT:
+            store.clear()
+        hit = store[key] = (
+            _solve_keys(state, seg, hands, tips, q0, root, clock, first, trunk), state.skel,
+        )  # fmt: skip
+    q, reach, tip_err, kept_trunk = hit[0]
+    return q.copy(), reach, tip_err.copy(), None if kept_trunk is None else kept_trunk.copy()
 
 
 def _closed(
@@ -732,7 +772,7 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     by ``paced_stroke``."""
     g = seg.goal
     run = _series(state, seg, series)
-    sol = _solve_stroke_keys(state, seg, run)
+    sol = _solve_stroke_keys(ctx.cache, state, seg, run)
     q = sol.q.copy()
     q[0] = _start_pose(state, seg, run)
     tip_err = sol.tip_error.copy()

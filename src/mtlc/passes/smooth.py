@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import Pose, forward, site_positions, site_rotation
+from mtlc.body import Pose, forward, part_site_positions, site_positions, site_rotation
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
@@ -167,13 +167,15 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # in any batch)
     moved = np.zeros(rows.size, dtype=bool)
     held: list[Contacts] = []  # of the frames to re-pin, chunk by chunk
+    legs = [skel.dofs_of_joints([f"{s}_hip", f"{s}_knee", f"{s}_ankle", f"{s}_toes"]) for s in "rl"]
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
         rot = frames.root_rotation[r]
         pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
-        after = forward(skel, frames.q[r], frames.root_position[r], rot, with_axes=False)
         soles_before = foot_points(skel, pose)
         contact = contact_mask(soles_before, stance_all[r], ir.ground)
+        _stance_legs_kept(frames, q0, root0, r, contact, legs)
+        after = forward(skel, frames.q[r], frames.root_position[r], rot, with_axes=False)
         # re-pin only the frames where a touching foot or a pinned hand actually moved
         soles = np.linalg.norm(foot_points(skel, after) - soles_before, axis=-1)
         m = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
@@ -204,6 +206,27 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if worse.size:
         balance_frames(ir, frames, worse)
     return ir
+
+
+def _stance_legs_kept(
+    frames: Frames,
+    q0: np.ndarray,
+    root0: np.ndarray,
+    rows: np.ndarray,
+    contact: np.ndarray,
+    legs: list[list[int]],
+) -> None:
+    """A touching foot's leg keeps its angles from before the blend on the frames ``rows``
+    where the blend left the root where it was: its foot then stays exactly where it was, what
+    re-pinning it by IK would find (to the solver's tolerance) at the cost of a solve. A long
+    walk's lift-offs blend nearly every frame's legs (the gait's own acceleration at each
+    lift-off is over the jump threshold) and rarely its root: their re-pin was a quarter of a
+    lint. ``contact``: the sole points touching before the blend ((len(rows), 8), r then l)."""
+    still = (frames.root_position[rows] == root0[rows]).all(axis=1)
+    touching = contact.reshape(len(rows), 2, -1).any(axis=2)
+    for k, dofs in enumerate(legs):
+        keep = rows[still & touching[:, k]]
+        frames.q[np.ix_(keep, dofs)] = q0[np.ix_(keep, dofs)]
 
 
 def _repin(
@@ -253,15 +276,23 @@ def _hands_put_back(
     """Per hand, (B,) whether re-pinning brought it back: within ``PUT_BACK`` of its place, or
     at least halfway from where the blend took it (``seed``). A blend that moved the body far
     from a pinned hand (a kneel's pelvis 25 cm from the squat's after it) left it out of reach,
-    and the solve, failing, turned the arm 108 deg in a frame (issue 19)."""
+    and the solve, failing, turned the arm 108 deg in a frame (issue 19). Measured on the rows
+    where the hand is pinned (False elsewhere: the callers ask of those alone), by the arm's
+    chain (``part_site_positions``: ``forward``'s numbers; a long walk pins no hand, and two
+    whole-body poses of its every frame were a third of the pass)."""
     skel = ir.skeleton
-    pose_before = forward(skel, seed, root, rot, with_axes=False)
-    pose_after = forward(skel, q, root, rot, with_axes=False)
     out = {}
-    for hand, (_, target) in hands.items():
-        was = np.linalg.norm(site_positions(skel, pose_before, hand) - target, axis=-1)
-        now = np.linalg.norm(site_positions(skel, pose_after, hand) - target, axis=-1)
-        out[hand] = (now <= PUT_BACK) | (now <= 0.5 * was)
+    for hand, (pinned, target) in hands.items():
+        rows = np.flatnonzero(pinned)
+        ok = np.zeros(len(q), dtype=bool)
+        if rows.size:
+            r, rr = root[rows], rot[rows]
+            was = part_site_positions(skel, seed[rows], r, rr, [hand])[:, 0]
+            now = part_site_positions(skel, q[rows], r, rr, [hand])[:, 0]
+            was = np.linalg.norm(was - target[rows], axis=-1)
+            now = np.linalg.norm(now - target[rows], axis=-1)
+            ok[rows] = (now <= PUT_BACK) | (now <= 0.5 * was)
+        out[hand] = ok
     return out
 
 

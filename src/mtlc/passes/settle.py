@@ -234,10 +234,18 @@ def _deeper(skel: Skeleton, frames: Frames, kept: slice, before: FloatArray, sid
     if changed.size == 0:
         return False
     rows = kept.start + changed
+    now = penetrations(skel, frames.q[rows], (frames.root_position[rows],
+                                               frames.root_rotation[rows]), (side,))[side]  # fmt: skip
+    # only a frame with the arm inside can be deeper than before: the frames before measured
+    # there alone (a frame's figure does not depend on the frames measured with it; an arm let
+    # down over a long walk is clear of the body on nearly every frame)
+    inside = np.flatnonzero(now > 0.0)
+    if inside.size == 0:
+        return False
+    rows, changed = rows[inside], changed[inside]
     root = (frames.root_position[rows], frames.root_rotation[rows])
     was = penetrations(skel, before[changed], root, (side,))[side]
-    now = penetrations(skel, frames.q[rows], root, (side,))[side]
-    return bool((now > np.maximum(was, 0.0)).any())
+    return bool((now[inside] > np.maximum(was, 0.0)).any())
 
 
 def _settle_trunk(

@@ -58,28 +58,28 @@ def drain_reservoir():
         'right_ankle': (-3.316, -5.695), 'left_hip': (7.096, 4.796, -13.772), 'left_knee': (53.27,),
         'left_ankle': (12.582, 3.482),
     })
-    human.KeyRoot(0.7, (-5.151, 82.049, 30.936), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.7, (-5.151, 82.039, 30.936), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (18.447, 1.949, -20.411), 'right_knee': (19.592,),
-        'right_ankle': (1.605, -4.596), 'left_hip': (5.706, 5.313, -14.146), 'left_knee': (55.705,),
-        'left_ankle': (7.012, 5.002),
+        'right_hip': (18.487, 1.963, -20.41), 'right_knee': (19.677,),
+        'right_ankle': (1.647, -4.596), 'left_hip': (5.717, 5.317, -14.145), 'left_knee': (55.736,),
+        'left_ankle': (7.03, 5.002),
     })
-    human.KeyRoot(0.8, (-5.104, 82.326, 31.545), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.8, (-5.104, 82.318, 31.545), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_knee': (18.017,), 'right_ankle': (1.148, -4.27), 'left_hip': (8.191, 6.235, -13.921),
+        'right_knee': (18.066,), 'right_ankle': (1.181, -4.27), 'left_hip': (8.191, 6.235, -13.921),
         'left_knee': (59.443,), 'left_ankle': (10.465, 5.219),
     })
-    human.KeyRoot(0.9, (-4.983, 82.579, 31.919), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.9, (-4.983, 82.574, 31.919), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.125, 1.684, -20.316), 'right_knee': (16.054,),
-        'right_ankle': (0.33, -4.012), 'left_hip': (15.075, 10.082, -13.971),
+        'right_hip': (16.142, 1.69, -20.315), 'right_knee': (16.091,),
+        'right_ankle': (0.354, -4.012), 'left_hip': (15.075, 10.082, -13.971),
         'left_knee': (57.838,), 'left_ankle': (18.89, 6.264),
     })
-    human.KeyRoot(1.0, (-4.665, 82.854, 33.029), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.0, (-4.665, 82.853, 33.029), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (14.769, 1.917, -20.172), 'right_knee': (14.681,),
-        'right_ankle': (0.151, -3.299), 'left_hip': (18.504, 13.212, -15.273),
-        'left_knee': (43.66,), 'left_ankle': (18.905, 7.221),
+        'right_hip': (14.775, 1.92, -20.172), 'right_knee': (14.695,),
+        'right_ankle': (0.16, -3.299), 'left_hip': (18.504, 13.212, -15.273), 'left_knee': (43.66,),
+        'left_ankle': (18.905, 7.221),
     })
     human.KeyRoot(1.1, (-3.0, 83.023, 37.433), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
@@ -87,13 +87,13 @@ def drain_reservoir():
         'right_ankle': (3.242, -0.281), 'left_hip': (16.173, 12.6, -16.865), 'left_knee': (27.447,),
         'left_ankle': (8.347, 6.874),
     })
-    human.KeyRoot(1.2, (-0.938, 83.161, 42.655), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.938, 83.158, 42.655), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (9.827, 7.023, -19.057), 'right_knee': (16.762,),
-        'right_ankle': (5.167, 3.333), 'left_hip': (8.232, 8.822, -18.841), 'left_knee': (13.233,),
-        'left_ankle': (2.546, 5.59),
+        'right_ankle': (5.167, 3.333), 'left_hip': (8.247, 8.827, -18.838), 'left_knee': (13.265,),
+        'left_ankle': (2.564, 5.59),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
     human.KeyRoot(1.3, (0.125, 83.895, 44.741), (-17.969, 0.0, 0.0))
@@ -272,9 +272,9 @@ def drain_reservoir():
     human.KeyJoints(8.7, {
         'spine_lumbar': (59.47, -1.983, 3.773), 'spine_thoracic': (29.12, -2.269, 3.099),
         'neck': (2.602, -0.075, 2.043), 'head': (2.602, 0.0), 'right_wrist': (-2.22, -1.77),
-        'right_hip': (75.195, 18.74, -7.592), 'right_knee': (93.4,),
-        'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592), 'left_knee': (93.4,),
-        'left_ankle': (17.418, -2.657),
+        'right_hip': (75.195, 18.74, -7.592), 'right_knee': (93.399,),
+        'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592),
+        'left_knee': (93.399,), 'left_ankle': (17.418, -2.657),
     })
     human.KeyRoot(8.8, (7.409, 56.808, 22.156), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
@@ -285,28 +285,28 @@ def drain_reservoir():
     human.KeyRoot(8.9, (6.768, 61.129, 24.133), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_elbow': (31.145, 17.105),
-        'right_knee': (79.855,), 'right_ankle': (17.49, -0.927), 'left_knee': (79.855,),
-        'left_ankle': (17.49, -0.927),
+        'right_knee': (79.855,), 'right_ankle': (17.489, -0.927), 'left_knee': (79.855,),
+        'left_ankle': (17.489, -0.927),
     })
     human.KeyRoot(9.0, (6.042, 65.253, 26.371), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
         'spine_lumbar': (40.954, -0.622, 1.183), 'spine_thoracic': (20.285, -0.711, 0.972),
-        'right_shoulder': (103.322, -5.72, 4.206), 'right_hip': (53.902, 16.344, -11.687),
-        'right_knee': (72.711,), 'right_ankle': (17.152, -0.077),
-        'left_hip': (53.902, 16.344, -11.687), 'left_knee': (72.711,),
+        'right_shoulder': (103.322, -5.72, 4.206), 'right_hip': (53.902, 16.344, -11.688),
+        'right_knee': (72.71,), 'right_ankle': (17.152, -0.077),
+        'left_hip': (53.902, 16.344, -11.688), 'left_knee': (72.71,),
         'left_ankle': (17.152, -0.077),
     })
     human.KeyRoot(9.1, (5.583, 69.474, 27.786), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.1, {
         'spine_lumbar': (35.729, -0.196, 0.373), 'spine_thoracic': (17.804, -0.225, 0.307),
-        'right_hip': (46.845, 15.136, -13.235), 'left_hip': (46.845, 15.136, -13.235),
+        'right_hip': (46.844, 15.136, -13.235), 'left_hip': (46.844, 15.136, -13.235),
     })
     human.KeyRoot(9.2, (5.004, 73.238, 29.572), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.2, {
         'spine_lumbar': (30.504, -0.002, 0.004), 'spine_thoracic': (15.251, -0.003, 0.004),
         'right_shoulder': (103.322, -5.72, 4.206), 'left_shoulder': (89.757, -29.27, 11.459),
-        'right_hip': (39.869, 13.845, -14.605), 'right_ankle': (12.222, 0.922),
-        'left_hip': (39.869, 13.845, -14.605), 'left_ankle': (12.222, 0.922),
+        'right_hip': (39.869, 13.845, -14.605), 'right_ankle': (12.222, 0.921),
+        'left_hip': (39.869, 13.845, -14.605), 'left_ankle': (12.222, 0.921),
     })
     human.KeyRoot(9.3, (4.315, 76.492, 31.695), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.3, {
@@ -316,7 +316,7 @@ def drain_reservoir():
     human.KeyRoot(9.4, (3.533, 79.194, 34.105), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.4, {
         'right_shoulder': (78.993, -2.779, 4.206), 'left_shoulder': (68.912, -20.281, 11.459),
-        'right_hip': (26.134, 11.08, -16.887), 'left_hip': (26.134, 11.08, -16.887),
+        'right_hip': (26.128, 11.08, -16.887), 'left_hip': (26.128, 11.08, -16.887),
     })
     human.KeyRoot(9.5, (2.676, 81.308, 36.748), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.5, {

@@ -54,27 +54,27 @@ def remove_access_panel():
         'right_ankle': (-12.728, 0.912), 'left_hip': (-6.548, -0.771, -0.594),
         'left_knee': (46.639,), 'left_ankle': (8.995, -0.973),
     })
-    human.KeyRoot(0.7, (-0.047, 70.167, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.047, 70.158, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (23.242, -0.039, -0.017), 'right_knee': (21.354,),
-        'right_ankle': (-1.899, -0.042), 'left_hip': (-10.779, 0.034, 0.034),
+        'right_hip': (23.266, -0.039, -0.017), 'right_knee': (21.405,),
+        'right_ankle': (-1.861, -0.042), 'left_hip': (-10.779, 0.034, 0.034),
         'left_knee': (44.062,), 'left_ankle': (-1.752, 0.048),
     })
-    human.KeyRoot(0.8, (-1.168, 70.648, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.168, 70.642, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (20.776, -0.965, -0.366), 'right_ankle': (-4.435, -1.032),
+        'right_hip': (20.803, -0.965, -0.367), 'right_ankle': (-4.397, -1.032),
         'left_hip': (-5.808, 0.809, 0.892), 'left_knee': (51.288,), 'left_ankle': (3.671, 1.204),
     })
-    human.KeyRoot(0.9, (-2.187, 70.977, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.187, 70.974, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (18.385, -1.824, -0.606), 'right_knee': (11.433,),
-        'right_ankle': (-6.946, -1.922), 'left_hip': (9.016, 1.675, 1.414), 'left_knee': (59.006,),
+        'right_hip': (18.413, -1.824, -0.607), 'right_knee': (11.492,),
+        'right_ankle': (-6.911, -1.922), 'left_hip': (9.016, 1.675, 1.414), 'left_knee': (59.006,),
         'left_ankle': (19.0, 2.192),
     })
-    human.KeyRoot(1.0, (-2.358, 70.975, 46.261), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 70.974, 46.261), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (18.742, -1.962, -0.666), 'right_knee': (12.98,),
-        'right_ankle': (-5.752, -2.072), 'left_hip': (20.684, 1.919, 1.14), 'left_knee': (49.571,),
+        'right_hip': (18.749, -1.962, -0.666), 'right_knee': (12.997,),
+        'right_ankle': (-5.742, -2.072), 'left_hip': (20.684, 1.919, 1.14), 'left_knee': (49.571,),
         'left_ankle': (19.0, 2.232),
     })
     human.KeyRoot(1.1, (-1.543, 71.17, 51.011), (0.0, 0.0, 0.0))
@@ -83,26 +83,24 @@ def remove_access_panel():
         'right_ankle': (2.563, -1.352), 'left_hip': (22.453, 1.284, 0.529), 'left_knee': (36.044,),
         'left_ankle': (13.795, 1.389),
     })
-    human.KeyRoot(1.2, (-0.487, 71.915, 57.163), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 71.914, 57.163), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'right_hip': (12.707, -0.412, -0.093), 'right_knee': (20.141,),
-        'right_ankle': (7.434, -0.422), 'left_hip': (12.705, 0.412, 0.093), 'left_knee': (20.136,),
-        'left_ankle': (7.432, 0.422),
+        'right_ankle': (7.434, -0.422), 'left_hip': (12.707, 0.412, 0.093), 'left_knee': (20.141,),
+        'left_ankle': (7.434, 0.422),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.269582)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
-        'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
+        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.4, {'neck': (0.348, -0.002, -6.849), 'head': (0.351, 0.0)})
     human.KeyJoints(1.5, {
         'neck': (0.895, -0.005, -17.559), 'head': (0.902, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
-        'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
@@ -110,9 +108,7 @@ def remove_access_panel():
     human.KeyJoints(1.6, {
         'neck': (1.087, -0.004, -21.117), 'head': (1.094, 0.0),
         'right_shoulder': (8.654, 5.731, 11.452), 'right_elbow': (34.377, 17.184),
-        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'right_wrist': (-0.001, -0.023),
     })
     human.KeyJoints(1.7, {
         'right_shoulder': (10.5, 5.761, 11.218), 'right_elbow': (34.372, 17.031),
@@ -2336,64 +2332,64 @@ def remove_access_panel():
     human.KeyJoints(47.7, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
         'head': (5.153, -0.373), 'right_elbow': (90.842, 24.897),
-        'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
-        'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
+        'right_hip': (6.469, -0.14, -0.543), 'right_knee': (12.394,), 'right_ankle': (5.926, -0.2),
+        'left_hip': (7.318, 0.133, 0.546), 'left_knee': (13.849,), 'left_ankle': (6.19, 0.201),
     })
     human.KeyRoot(47.8, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(47.8, {
         'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'left_elbow': (21.157, 18.169),
-        'right_hip': (7.244, -0.536, -2.481), 'right_knee': (14.727,),
-        'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517), 'left_knee': (18.046,),
-        'left_ankle': (7.602, 0.86),
+        'right_hip': (7.231, -0.536, -2.481), 'right_knee': (14.699,),
+        'right_ankle': (7.497, -0.844), 'left_hip': (9.478, 0.452, 2.517), 'left_knee': (18.021,),
+        'left_ankle': (7.587, 0.86),
     })
     human.KeyRoot(47.9, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(47.9, {
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_hip': (6.792, -0.973, -5.207),
-        'right_knee': (14.607,), 'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_hip': (6.749, -0.973, -5.207),
+        'right_knee': (14.512,), 'right_ankle': (7.876, -1.574), 'left_hip': (17.261, 0.889, 2.279),
         'left_knee': (34.508,), 'left_ankle': (16.48, 1.57),
     })
     human.KeyRoot(48.0, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
-        'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
+        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.538, -0.983, -8.152),
+        'right_knee': (16.709,), 'right_ankle': (8.265, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
     human.KeyRoot(48.1, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
-        'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
+        'right_hip': (10.748, 0.118, -10.871), 'right_knee': (23.204,),
+        'right_ankle': (8.894, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
     human.KeyRoot(48.2, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
-        'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
+        'right_hip': (14.798, 2.323, -13.55), 'right_knee': (30.395,),
+        'right_ankle': (8.708, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
-    human.KeyRoot(48.3, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
+    human.KeyRoot(48.3, (-0.775, 72.487, 58.303), (17.063, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
-        'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
-        'left_ankle': (7.073, -0.351),
+        'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.068,),
+        'right_ankle': (8.191, -0.379), 'left_hip': (7.376, 2.073, -18.244), 'left_knee': (14.785,),
+        'left_ankle': (7.133, -0.351),
     })
-    human.KeyRoot(48.4, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
+    human.KeyRoot(48.4, (0.121, 72.487, 58.354), (21.676, 0.0, 0.0))
     human.KeyJoints(48.4, {
         'spine_thoracic': (-14.684, -6.403, 6.875), 'right_hip': (18.001, 7.349, -19.807),
         'right_knee': (39.588,), 'right_ankle': (10.474, 0.616),
-        'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
+        'left_hip': (7.677, 0.742, -13.765), 'left_knee': (14.625,),
     })
-    human.KeyRoot(48.5, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
+    human.KeyRoot(48.5, (1.184, 72.487, 58.605), (27.492, 0.0, 0.0))
     human.KeyJoints(48.5, {
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
-        'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
-        'left_ankle': (6.81, -1.859),
+        'right_ankle': (17.903, 1.218), 'left_hip': (7.664, -0.797, -8.1), 'left_knee': (14.319,),
+        'left_ankle': (6.84, -1.859),
     })
-    human.KeyRoot(48.6, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
+    human.KeyRoot(48.6, (2.075, 72.487, 58.988), (33.566, 0.0, 0.0))
     human.KeyJoints(48.6, {
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
-        'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
-        'left_ankle': (6.744, -2.356),
+        'right_ankle': (19.244, 1.317), 'left_hip': (7.695, -2.088, -2.153), 'left_knee': (14.536,),
+        'left_ankle': (6.788, -2.356),
     })
     human.KeyRoot(48.7, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
     human.KeyJoints(48.7, {
@@ -2408,24 +2404,24 @@ def remove_access_panel():
     })
     human.KeyRoot(48.9, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
-        'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.995, -3.043, 20.193), 'right_knee': (14.761,),
+        'right_ankle': (8.085, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
     human.KeyRoot(49.0, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
+        'right_hip': (5.388, -2.729, 14.596), 'right_ankle': (8.604, -1.273),
         'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
     human.KeyRoot(49.1, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'right_hip': (5.53, -2.614, 8.969), 'right_knee': (14.358,), 'right_ankle': (8.487, -1.709),
+        'right_hip': (5.52, -2.613, 8.969), 'right_knee': (14.337,), 'right_ankle': (8.475, -1.709),
         'left_hip': (20.827, -7.322, 18.991), 'left_knee': (44.671,), 'left_ankle': (15.335, 0.192),
     })
     human.KeyRoot(49.2, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'right_hip': (5.957, -2.518, 3.333), 'right_knee': (14.176,),
-        'right_ankle': (8.079, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
+        'right_hip': (5.951, -2.518, 3.329), 'right_knee': (14.164,),
+        'right_ankle': (8.072, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
         'left_ankle': (19.173, 0.476),
     })
     human.KeyRoot(49.3, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
@@ -2448,20 +2444,20 @@ def remove_access_panel():
     human.KeyRoot(49.6, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
     human.KeyJoints(49.6, {
         'right_hip': (13.594, 4.636, -17.865), 'right_knee': (27.294,),
-        'right_ankle': (8.214, 0.154), 'left_hip': (7.668, 1.36, -16.942), 'left_knee': (14.683,),
-        'left_ankle': (6.955, -0.938),
+        'right_ankle': (8.214, 0.154), 'left_hip': (7.657, 1.357, -16.94), 'left_knee': (14.658,),
+        'left_ankle': (6.939, -0.938),
     })
     human.KeyRoot(49.7, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
     human.KeyJoints(49.7, {
         'right_hip': (16.985, 7.166, -18.852), 'right_knee': (36.377,),
-        'right_ankle': (13.606, 1.037), 'left_hip': (7.673, 0.244, -13.991),
-        'left_ankle': (6.954, -1.615),
+        'right_ankle': (13.606, 1.037), 'left_hip': (7.666, 0.242, -13.99),
+        'left_ankle': (6.945, -1.615),
     })
     human.KeyRoot(49.8, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
     human.KeyJoints(49.8, {
         'right_hip': (20.652, 7.363, -14.073), 'right_knee': (43.969,),
-        'right_ankle': (19.0, 1.726), 'left_hip': (7.312, -0.626, -11.517), 'left_knee': (14.284,),
-        'left_ankle': (7.241, -2.062),
+        'right_ankle': (19.0, 1.726), 'left_hip': (7.304, -0.626, -11.506), 'left_knee': (14.264,),
+        'left_ankle': (7.228, -2.062),
     })
     human.KeyRoot(49.9, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
     human.KeyJoints(49.9, {
@@ -2482,20 +2478,21 @@ def remove_access_panel():
     })
     human.KeyRoot(50.2, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
     human.KeyJoints(50.2, {
-        'right_hip': (6.762, -0.073, 0.043), 'right_knee': (15.114,),
+        'right_hip': (6.762, -0.073, 0.013), 'right_knee': (15.114,),
         'right_ankle': (8.352, -0.071), 'left_hip': (37.764, 0.033, 0.115), 'left_knee': (62.937,),
         'left_ankle': (-18.356, 0.133),
     })
     human.KeyRoot(50.3, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
     human.KeyJoints(50.3, {
-        'right_hip': (6.289, -0.476, -0.033), 'right_knee': (17.521,),
+        'right_hip': (6.289, -0.476, -0.053), 'right_knee': (17.521,),
         'right_ankle': (11.232, -0.479), 'left_hip': (39.479, 0.063, 0.982), 'left_knee': (67.326,),
         'left_ankle': (-19.173, 0.984),
     })
     human.KeyRoot(50.4, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
     human.KeyJoints(50.4, {
-        'right_hip': (3.738, -1.06, -0.06), 'right_knee': (17.98,), 'right_ankle': (14.243, -1.062),
-        'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,), 'left_ankle': (-6.665, 1.712),
+        'right_hip': (3.738, -1.06, -0.069), 'right_knee': (17.98,),
+        'right_ankle': (14.243, -1.062), 'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,),
+        'left_ankle': (-6.665, 1.712),
     })
     human.KeyRoot(50.5, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
     human.KeyJoints(50.5, {
@@ -2524,31 +2521,30 @@ def remove_access_panel():
     human.KeyRoot(50.9, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
     human.KeyJoints(50.9, {
         'right_hip': (3.747, -0.027, -0.048), 'right_knee': (58.809,),
-        'right_ankle': (-1.574, -0.055), 'left_hip': (21.408, 0.039, 0.015), 'left_knee': (22.227,),
-        'left_ankle': (0.82, 0.042),
+        'right_ankle': (-1.574, -0.055), 'left_hip': (21.402, 0.039, 0.015), 'left_knee': (22.215,),
+        'left_ankle': (0.812, 0.042),
     })
     human.KeyRoot(51.0, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
     human.KeyJoints(51.0, {
         'right_hip': (0.888, 0.462, 0.77), 'right_knee': (56.572,), 'right_ankle': (-2.401, 0.898),
-        'left_hip': (18.098, -0.653, -0.214), 'left_knee': (22.755,), 'left_ankle': (4.659, -0.687),
+        'left_hip': (18.091, -0.654, -0.213), 'left_knee': (22.741,), 'left_ankle': (4.651, -0.687),
     })
     human.KeyRoot(51.1, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
     human.KeyJoints(51.1, {
         'right_hip': (14.582, 1.105, 1.343), 'right_knee': (65.608,),
-        'right_ankle': (15.104, 1.739), 'left_hip': (13.855, -1.361, -0.336),
-        'left_knee': (19.689,), 'left_ankle': (5.838, -1.401),
+        'right_ankle': (15.104, 1.739), 'left_hip': (13.851, -1.361, -0.335), 'left_knee': (19.68,),
+        'left_ankle': (5.833, -1.401),
     })
     human.KeyRoot(51.2, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
     human.KeyJoints(51.2, {
         'right_hip': (29.19, 1.805, 1.394), 'right_knee': (56.405,), 'right_ankle': (18.776, 2.281),
-        'left_hip': (13.268, -1.958, -0.516), 'left_knee': (25.542,),
-        'left_ankle': (10.794, -2.024),
+        'left_hip': (13.266, -1.958, -0.515), 'left_knee': (25.537,),
+        'left_ankle': (10.792, -2.024),
     })
     human.KeyRoot(51.3, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
     human.KeyJoints(51.3, {
         'right_hip': (33.603, 1.905, 1.262), 'right_knee': (35.639,), 'right_ankle': (2.157, 2.285),
-        'left_hip': (18.012, -1.955, -1.246), 'left_knee': (48.621,),
-        'left_ankle': (16.122, -2.319),
+        'left_hip': (18.011, -1.955, -1.246), 'left_knee': (48.62,), 'left_ankle': (16.122, -2.319),
     })
     human.KeyRoot(51.4, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
     human.KeyJoints(51.4, {
@@ -2556,27 +2552,27 @@ def remove_access_panel():
         'right_ankle': (-12.669, 1.473), 'left_hip': (13.871, -1.133, -1.259),
         'left_knee': (61.386,), 'left_ankle': (13.373, -1.694),
     })
-    human.KeyRoot(51.5, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
+    human.KeyRoot(51.5, (79.588, 70.041, 37.175), (106.251, 0.0, 0.0))
     human.KeyJoints(51.5, {
-        'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
-        'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
+        'right_hip': (23.771, 0.34, 0.15), 'right_knee': (22.412,), 'right_ankle': (-1.358, 0.372),
+        'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.016,), 'left_ankle': (3.113, -0.472),
     })
     human.KeyRoot(51.6, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
     human.KeyJoints(51.6, {
-        'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
-        'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
+        'right_hip': (20.183, -0.663, 0.369), 'right_knee': (25.448,),
+        'right_ankle': (5.261, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
     human.KeyRoot(51.7, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
     human.KeyJoints(51.7, {
-        'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
-        'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
+        'right_hip': (15.152, -1.863, 2.809), 'right_knee': (20.324,),
+        'right_ankle': (5.097, -1.062), 'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,),
+        'left_ankle': (9.815, 0.64),
     })
     human.KeyRoot(51.8, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
     human.KeyJoints(51.8, {
-        'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
-        'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
-        'left_ankle': (18.697, 1.419),
+        'right_hip': (11.701, -2.92, 6.095), 'right_knee': (18.597,), 'right_ankle': (6.58, -1.609),
+        'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,), 'left_ankle': (18.697, 1.419),
     })
     human.KeyRoot(51.9, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
     human.KeyJoints(51.9, {
@@ -2596,23 +2592,23 @@ def remove_access_panel():
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
-    human.KeyRoot(52.2, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.2, (130.52, 71.171, 22.549), (90.0, 0.0, 0.0))
     human.KeyJoints(52.2, {
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
-        'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
-        'left_ankle': (1.594, 2.233),
+        'right_ankle': (6.264, 0.522), 'left_hip': (18.46, 2.118, 0.707), 'left_knee': (20.057,),
+        'left_ankle': (1.61, 2.233),
     })
-    human.KeyRoot(52.3, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.3, (130.146, 71.419, 20.923), (90.0, 0.0, 0.0))
     human.KeyJoints(52.3, {
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
-        'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
-        'left_ankle': (-0.141, 0.805),
+        'right_ankle': (16.122, 2.671), 'left_hip': (17.437, 0.768, 0.242), 'left_knee': (17.305,),
+        'left_ankle': (-0.13, 0.805),
     })
-    human.KeyRoot(52.4, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.4, (129.751, 71.675, 19.945), (90.0, 0.0, 0.0))
     human.KeyJoints(52.4, {
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
-        'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
-        'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
+        'right_ankle': (19.401, 4.392), 'left_hip': (15.849, -0.046, -0.013),
+        'left_knee': (13.327,), 'left_ankle': (-2.522, -0.048),
     })
     human.KeyRoot(52.5, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
     human.KeyJoints(52.5, {
@@ -2626,29 +2622,24 @@ def remove_access_panel():
     })
     human.KeyRoot(52.7, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
     human.KeyJoints(52.7, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
-        'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.162, 0.015, 0.002),
+        'right_knee': (15.741,), 'right_ankle': (6.58, 0.015), 'left_hip': (9.162, -0.015, -0.002),
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.769006, duration=0.32772)
-    human.KeyRoot(52.8, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.8, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(52.8, {
-        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
-        'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
-        'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
+        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(52.9, {
-        'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
-        'left_knee': (5.072,),
-    })
+    human.KeyJoints(52.9, {'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955)})
     human.KeyJoints(53.0, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
         'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
-        'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
-        'left_hip': (3.032, 0.0, 0.0), 'left_knee': (4.936,), 'left_ankle': (1.906, 0.0),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
@@ -2659,8 +2650,6 @@ def remove_access_panel():
         'right_shoulder': (33.877, 34.973, -9.753), 'right_elbow': (91.012, 24.925),
         'right_wrist': (-16.588, -18.209), 'left_shoulder': (88.195, -28.975, 15.118),
         'left_elbow': (22.721, 17.987), 'left_wrist': (-0.054, -5.342),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.2, {
         'right_shoulder': (27.627, 32.32, -8.72), 'right_elbow': (93.584, 25.223),

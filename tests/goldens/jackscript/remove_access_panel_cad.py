@@ -56,27 +56,27 @@ def remove_access_panel_cad():
         'right_ankle': (-12.728, 0.912), 'left_hip': (-6.548, -0.771, -0.594),
         'left_knee': (46.639,), 'left_ankle': (8.995, -0.973),
     })
-    human.KeyRoot(0.7, (-0.047, 70.167, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.047, 70.158, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (23.242, -0.039, -0.017), 'right_knee': (21.354,),
-        'right_ankle': (-1.899, -0.042), 'left_hip': (-10.779, 0.034, 0.034),
+        'right_hip': (23.266, -0.039, -0.017), 'right_knee': (21.405,),
+        'right_ankle': (-1.861, -0.042), 'left_hip': (-10.779, 0.034, 0.034),
         'left_knee': (44.062,), 'left_ankle': (-1.752, 0.048),
     })
-    human.KeyRoot(0.8, (-1.168, 70.648, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.168, 70.642, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (20.776, -0.965, -0.366), 'right_ankle': (-4.435, -1.032),
+        'right_hip': (20.803, -0.965, -0.367), 'right_ankle': (-4.397, -1.032),
         'left_hip': (-5.808, 0.809, 0.892), 'left_knee': (51.288,), 'left_ankle': (3.671, 1.204),
     })
-    human.KeyRoot(0.9, (-2.187, 70.977, 45.81), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.187, 70.974, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (18.385, -1.824, -0.606), 'right_knee': (11.433,),
-        'right_ankle': (-6.946, -1.922), 'left_hip': (9.016, 1.675, 1.414), 'left_knee': (59.006,),
+        'right_hip': (18.413, -1.824, -0.607), 'right_knee': (11.492,),
+        'right_ankle': (-6.911, -1.922), 'left_hip': (9.016, 1.675, 1.414), 'left_knee': (59.006,),
         'left_ankle': (19.0, 2.192),
     })
-    human.KeyRoot(1.0, (-2.358, 70.975, 46.261), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 70.974, 46.261), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (18.742, -1.962, -0.666), 'right_knee': (12.98,),
-        'right_ankle': (-5.752, -2.072), 'left_hip': (20.684, 1.919, 1.14), 'left_knee': (49.571,),
+        'right_hip': (18.749, -1.962, -0.666), 'right_knee': (12.997,),
+        'right_ankle': (-5.742, -2.072), 'left_hip': (20.684, 1.919, 1.14), 'left_knee': (49.571,),
         'left_ankle': (19.0, 2.232),
     })
     human.KeyRoot(1.1, (-1.543, 71.17, 51.011), (0.0, 0.0, 0.0))
@@ -85,26 +85,24 @@ def remove_access_panel_cad():
         'right_ankle': (2.563, -1.352), 'left_hip': (22.453, 1.284, 0.529), 'left_knee': (36.044,),
         'left_ankle': (13.795, 1.389),
     })
-    human.KeyRoot(1.2, (-0.487, 71.915, 57.163), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 71.914, 57.163), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'right_hip': (12.707, -0.412, -0.093), 'right_knee': (20.141,),
-        'right_ankle': (7.434, -0.422), 'left_hip': (12.705, 0.412, 0.093), 'left_knee': (20.136,),
-        'left_ankle': (7.432, 0.422),
+        'right_ankle': (7.434, -0.422), 'left_hip': (12.707, 0.412, 0.093), 'left_knee': (20.141,),
+        'left_ankle': (7.434, 0.422),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.270061)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
-        'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
+        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.4, {'neck': (0.349, -0.002, -6.87), 'head': (0.352, 0.0)})
     human.KeyJoints(1.5, {
         'neck': (0.899, -0.005, -17.64), 'head': (0.906, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
-        'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
@@ -112,9 +110,7 @@ def remove_access_panel_cad():
     human.KeyJoints(1.6, {
         'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
         'right_shoulder': (8.653, 5.731, 11.452), 'right_elbow': (34.378, 17.184),
-        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'right_wrist': (-0.001, -0.023),
     })
     human.KeyJoints(1.7, {
         'right_shoulder': (10.491, 5.764, 11.216), 'right_elbow': (34.409, 17.028),
@@ -2332,63 +2328,64 @@ def remove_access_panel_cad():
     human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
     human.KeyJoints(47.3, {
         'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551), 'right_elbow': (90.762, 22.836),
-        'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
-        'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
+        'right_hip': (5.674, -0.055, -0.198), 'right_knee': (10.582,),
+        'right_ankle': (4.908, -0.075), 'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,),
+        'left_ankle': (5.081, 0.075),
     })
-    human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
+    human.KeyRoot(47.4, (-0.716, 72.521, 60.147), (1.684, 0.0, 0.0))
     human.KeyJoints(47.4, {
         'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872),
-        'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
-        'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
+        'right_hip': (7.176, -0.397, -1.747), 'right_knee': (14.329,),
+        'right_ankle': (7.168, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
         'left_ankle': (7.387, 0.62),
     })
-    human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
+    human.KeyRoot(47.5, (-1.598, 72.487, 60.327), (4.162, 0.0, 0.0))
     human.KeyJoints(47.5, {
         'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
-        'right_hip': (6.913, -0.846, -4.294), 'right_knee': (14.599,),
-        'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
+        'right_hip': (6.917, -0.846, -4.294), 'right_knee': (14.606,),
+        'right_ankle': (7.77, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
         'left_ankle': (13.045, 1.381),
     })
-    human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
+    human.KeyRoot(47.6, (-2.313, 72.538, 60.474), (7.024, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
-        'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
+        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.12, -1.059, -7.226),
+        'right_knee': (15.712,), 'right_ankle': (8.229, -1.936),
         'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,), 'left_ankle': (18.33, 1.841),
     })
     human.KeyRoot(47.7, (-2.442, 72.709, 60.424), (9.724, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'right_hip': (9.468, -0.385, -10.017), 'right_knee': (20.787,),
-        'right_ankle': (8.725, -2.016), 'left_hip': (18.903, 5.833, -10.754),
+        'right_hip': (9.469, -0.384, -10.017), 'right_knee': (20.79,),
+        'right_ankle': (8.726, -2.016), 'left_hip': (18.903, 5.833, -10.754),
         'left_knee': (41.406,), 'left_ankle': (18.425, 1.87),
     })
     human.KeyRoot(47.8, (-1.893, 72.677, 59.488), (12.556, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'right_hip': (13.505, 1.533, -12.699), 'right_knee': (28.094,), 'right_ankle': (8.77, -1.5),
-        'left_hip': (12.416, 5.745, -18.876), 'left_knee': (28.381,), 'left_ankle': (15.239, 1.127),
+        'right_hip': (13.506, 1.533, -12.699), 'right_knee': (28.095,),
+        'right_ankle': (8.771, -1.5), 'left_hip': (12.416, 5.745, -18.876), 'left_knee': (28.381,),
+        'left_ankle': (15.239, 1.127),
     })
-    human.KeyRoot(47.9, (-1.042, 72.491, 58.454), (15.87, 0.0, 0.0))
+    human.KeyRoot(47.9, (-1.042, 72.487, 58.454), (15.87, 0.0, 0.0))
     human.KeyJoints(47.9, {
         'right_hip': (16.734, 4.062, -15.469), 'right_knee': (34.09,),
-        'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.403), 'left_knee': (14.776,),
-        'left_ankle': (7.236, -0.041),
+        'right_ankle': (8.372, -0.662), 'left_hip': (7.139, 2.485, -19.402), 'left_knee': (14.819,),
+        'left_ankle': (7.261, -0.041),
     })
-    human.KeyRoot(48.0, (-0.197, 72.499, 58.309), (20.038, 0.0, 0.0))
+    human.KeyRoot(48.0, (-0.197, 72.487, 58.309), (20.038, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'right_hip': (16.85, 6.287, -19.018), 'right_knee': (36.102,),
-        'right_ankle': (8.297, 0.269), 'left_hip': (7.542, 1.188, -15.364),
-        'left_ankle': (6.948, -0.857),
+        'right_hip': (16.879, 6.297, -19.015), 'right_knee': (36.167,),
+        'right_ankle': (8.33, 0.269), 'left_hip': (7.614, 1.207, -15.363), 'left_knee': (14.692,),
     })
-    human.KeyRoot(48.1, (0.847, 72.495, 58.508), (25.571, 0.0, 0.0))
+    human.KeyRoot(48.1, (0.847, 72.487, 58.508), (25.571, 0.0, 0.0))
     human.KeyJoints(48.1, {
         'right_hip': (20.382, 8.102, -17.83), 'right_knee': (45.254,),
-        'right_ankle': (15.607, 1.106), 'left_hip': (7.659, -0.319, -9.982),
-        'left_ankle': (6.84, -1.635),
+        'right_ankle': (15.607, 1.106), 'left_hip': (7.702, -0.312, -9.981),
+        'left_ankle': (6.893, -1.635),
     })
-    human.KeyRoot(48.2, (1.83, 72.491, 58.854), (31.669, 0.0, 0.0))
+    human.KeyRoot(48.2, (1.83, 72.487, 58.854), (31.669, 0.0, 0.0))
     human.KeyJoints(48.2, {
         'right_hip': (22.426, 4.762, -7.963), 'right_knee': (47.247,),
-        'right_ankle': (19.163, 1.303), 'left_hip': (7.494, -1.734, -4.013), 'left_knee': (14.051,),
-        'left_ankle': (6.689, -2.239),
+        'right_ankle': (19.163, 1.303), 'left_hip': (7.517, -1.733, -4.013), 'left_knee': (14.099,),
+        'left_ankle': (6.716, -2.239),
     })
     human.KeyRoot(48.3, (2.451, 72.597, 59.422), (37.443, 0.0, 0.0))
     human.KeyJoints(48.3, {
@@ -2408,18 +2405,19 @@ def remove_access_panel_cad():
     })
     human.KeyRoot(48.6, (3.348, 72.487, 63.761), (54.269, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.485, -2.835, 16.383), 'right_knee': (14.6,),
-        'right_ankle': (8.54, -1.162), 'left_hip': (15.722, -5.783, 17.887), 'left_knee': (34.927,),
-        'left_ankle': (9.192, -0.526),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.472, -2.831, 16.382), 'right_knee': (14.573,),
+        'right_ankle': (8.523, -1.162), 'left_hip': (15.722, -5.783, 17.887),
+        'left_knee': (34.927,), 'left_ankle': (9.192, -0.526),
     })
     human.KeyRoot(48.7, (2.681, 72.487, 63.823), (59.878, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (5.432, -2.634, 10.766), 'right_ankle': (8.574, -1.562),
+        'right_hip': (5.424, -2.632, 10.765), 'right_ankle': (8.564, -1.562),
         'left_hip': (19.43, -7.565, 20.515), 'left_knee': (42.145,), 'left_ankle': (12.948, 0.076),
     })
     human.KeyJoints(48.8, {
-        'right_hip': (5.82, -2.564, 5.135), 'right_knee': (14.244,), 'right_ankle': (8.218, -2.022),
-        'left_hip': (22.187, -4.96, 12.775), 'left_knee': (46.802,), 'left_ankle': (19.081, 0.367),
+        'right_hip': (5.808, -2.564, 5.124), 'right_knee': (14.223,),
+        'right_ankle': (8.205, -2.022), 'left_hip': (22.187, -4.96, 12.775), 'left_knee': (46.802,),
+        'left_ankle': (19.081, 0.367),
     })
     human.KeyRoot(48.9, (0.347, 72.49, 63.87), (71.1, 0.0, 0.0))
     human.KeyJoints(48.9, {
@@ -2442,20 +2440,20 @@ def remove_access_panel_cad():
     human.KeyRoot(49.2, (-2.763, 72.487, 60.366), (88.119, 0.0, 0.0))
     human.KeyJoints(49.2, {
         'right_hip': (13.568, 4.066, -16.809), 'right_knee': (26.794,),
-        'right_ankle': (8.149, -0.107), 'left_hip': (7.516, 1.743, -18.086), 'left_knee': (14.736,),
-        'left_ankle': (7.054, -0.684),
+        'right_ankle': (8.149, -0.107), 'left_hip': (7.512, 1.742, -18.084), 'left_knee': (14.728,),
+        'left_ankle': (7.048, -0.684),
     })
     human.KeyRoot(49.3, (-2.568, 72.487, 59.557), (91.474, 0.0, 0.0))
     human.KeyJoints(49.3, {
         'right_hip': (15.084, 6.302, -19.278), 'right_knee': (31.804,),
-        'right_ankle': (10.774, 0.76), 'left_hip': (7.723, 0.579, -14.854),
-        'left_ankle': (6.902, -1.42),
+        'right_ankle': (10.774, 0.76), 'left_hip': (7.721, 0.578, -14.853),
+        'left_ankle': (6.899, -1.42),
     })
     human.KeyRoot(49.4, (-1.995, 72.487, 58.835), (94.135, 0.0, 0.0))
     human.KeyJoints(49.4, {
         'right_hip': (19.697, 7.675, -16.044), 'right_knee': (42.185,),
-        'right_ankle': (18.136, 1.543), 'left_hip': (7.437, -0.386, -12.301),
-        'left_knee': (14.323,), 'left_ankle': (7.136, -1.952),
+        'right_ankle': (18.136, 1.543), 'left_hip': (7.437, -0.386, -12.284),
+        'left_knee': (14.314,), 'left_ankle': (7.126, -1.952),
     })
     human.KeyRoot(49.5, (-1.299, 72.533, 58.433), (96.674, 0.0, 0.0))
     human.KeyJoints(49.5, {
@@ -2473,27 +2471,27 @@ def remove_access_panel_cad():
         'right_hip': (13.18, 0.817, 0.678), 'right_knee': (26.609,),
         'left_hip': (27.729, 0.563, -3.431), 'left_knee': (50.892,), 'left_ankle': (-0.91, -1.203),
     })
-    human.KeyRoot(49.8, (0.896, 72.489, 60.429), (105.966, 0.0, 0.0))
+    human.KeyRoot(49.8, (0.896, 72.487, 60.429), (105.966, 0.0, 0.0))
     human.KeyJoints(49.8, {
-        'right_hip': (6.938, 0.06, 0.316), 'right_knee': (14.833,), 'right_ankle': (7.894, 0.098),
+        'right_hip': (6.948, 0.06, 0.315), 'right_knee': (14.854,), 'right_ankle': (7.907, 0.098),
         'left_hip': (35.206, 0.13, -0.399), 'left_knee': (60.409,), 'left_ankle': (-12.435, -0.157),
     })
-    human.KeyRoot(49.9, (2.366, 72.327, 60.512), (106.271, 0.0, 0.0))
+    human.KeyRoot(49.9, (2.366, 72.321, 60.512), (106.271, 0.0, 0.0))
     human.KeyJoints(49.9, {
-        'right_hip': (6.561, -0.322, -0.018), 'right_knee': (16.626,),
-        'right_ankle': (10.073, -0.325), 'left_hip': (37.606, 0.084, 0.608), 'left_knee': (64.194,),
+        'right_hip': (6.585, -0.322, -0.037), 'right_knee': (16.688,),
+        'right_ankle': (10.103, -0.325), 'left_hip': (37.606, 0.084, 0.608), 'left_knee': (64.194,),
         'left_ankle': (-17.96, 0.614),
     })
-    human.KeyRoot(50.0, (5.084, 72.083, 60.356), (106.271, 0.0, 0.0))
+    human.KeyRoot(50.0, (5.084, 72.079, 60.356), (106.271, 0.0, 0.0))
     human.KeyJoints(50.0, {
-        'right_hip': (4.926, -0.851, -0.063), 'right_knee': (18.02,),
-        'right_ankle': (13.098, -0.855), 'left_hip': (39.533, 0.335, 1.38), 'left_knee': (68.191,),
+        'right_hip': (4.939, -0.851, -0.074), 'right_knee': (18.053,),
+        'right_ankle': (13.115, -0.855), 'left_hip': (39.533, 0.335, 1.38), 'left_knee': (68.191,),
         'left_ankle': (-8.275, 1.42),
     })
     human.KeyRoot(50.1, (8.715, 71.983, 60.073), (106.271, 0.0, 0.0))
     human.KeyJoints(50.1, {
-        'right_hip': (0.533, -1.501, -0.013), 'right_knee': (15.22,),
-        'right_ankle': (14.688, -1.502), 'left_hip': (38.871, 1.062, 1.626), 'left_knee': (59.555,),
+        'right_hip': (0.535, -1.501, -0.014), 'right_knee': (15.225,),
+        'right_ankle': (14.69, -1.502), 'left_hip': (38.871, 1.062, 1.626), 'left_knee': (59.555,),
         'left_ankle': (2.618, 1.942),
     })
     human.KeyRoot(50.2, (12.824, 71.854, 59.673), (106.271, 0.0, 0.0))
@@ -2517,18 +2515,18 @@ def remove_access_panel_cad():
     human.KeyRoot(50.5, (31.807, 70.974, 51.885), (106.271, 0.0, 0.0))
     human.KeyJoints(50.5, {
         'right_hip': (7.455, -0.197, -0.35), 'right_knee': (60.565,),
-        'right_ankle': (-0.057, -0.401), 'left_hip': (19.556, 0.286, 0.102), 'left_knee': (16.766,),
-        'left_ankle': (-2.788, 0.303),
+        'right_ankle': (-0.057, -0.401), 'left_hip': (19.548, 0.286, 0.102), 'left_knee': (16.75,),
+        'left_ankle': (-2.797, 0.303),
     })
     human.KeyRoot(50.6, (35.859, 71.262, 49.807), (106.271, 0.0, 0.0))
     human.KeyJoints(50.6, {
         'right_hip': (4.005, 0.274, 0.562), 'right_knee': (58.092,), 'right_ankle': (-5.91, 0.625),
-        'left_hip': (17.972, -0.429, -0.139), 'left_knee': (21.553,), 'left_ankle': (3.582, -0.451),
+        'left_hip': (17.969, -0.429, -0.139), 'left_knee': (21.546,), 'left_ankle': (3.578, -0.451),
     })
     human.KeyRoot(50.7, (38.561, 71.746, 48.132), (106.271, 0.0, 0.0))
     human.KeyJoints(50.7, {
         'right_hip': (11.759, 0.844, 1.284), 'right_knee': (65.344,), 'right_ankle': (8.775, 1.536),
-        'left_hip': (14.625, -1.147, -0.299), 'left_ankle': (5.52, -1.186),
+        'left_hip': (14.612, -1.147, -0.299), 'left_ankle': (5.513, -1.186),
     })
     human.KeyRoot(50.8, (41.575, 72.101, 46.466), (106.271, 0.0, 0.0))
     human.KeyJoints(50.8, {
@@ -2553,22 +2551,21 @@ def remove_access_panel_cad():
         'right_hip': (20.521, 0.667, 0.25), 'right_knee': (11.631,), 'right_ankle': (-8.832, 0.712),
         'left_hip': (10.364, -0.487, -0.763), 'left_knee': (62.485,), 'left_ankle': (5.049, -0.906),
     })
-    human.KeyRoot(51.2, (78.915, 70.819, 38.086), (106.125, 0.0, 0.0))
+    human.KeyRoot(51.2, (78.915, 70.816, 38.086), (106.125, 0.0, 0.0))
     human.KeyJoints(51.2, {
-        'right_hip': (20.106, -0.297, 0.047), 'right_knee': (24.103,),
-        'right_ankle': (3.993, -0.263), 'left_hip': (5.503, 0.17, 0.182), 'left_knee': (60.288,),
+        'right_hip': (20.112, -0.297, 0.047), 'right_knee': (24.117,),
+        'right_ankle': (4.004, -0.263), 'left_hip': (5.503, 0.17, 0.182), 'left_knee': (60.288,),
         'left_ankle': (-4.295, 0.363),
     })
-    human.KeyRoot(51.3, (82.398, 71.543, 37.836), (104.06, 0.0, 0.0))
+    human.KeyRoot(51.3, (82.398, 71.541, 37.836), (104.06, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'right_hip': (15.935, -1.469, 1.88), 'right_knee': (21.232,),
-        'right_ankle': (5.254, -0.895), 'left_hip': (7.24, 0.582, -0.712), 'left_knee': (63.417,),
-        'left_ankle': (3.932, 0.808),
+        'right_hip': (15.94, -1.469, 1.88), 'right_knee': (21.243,), 'right_ankle': (5.262, -0.895),
+        'left_hip': (7.24, 0.582, -0.712), 'left_knee': (63.417,), 'left_ankle': (3.932, 0.808),
     })
     human.KeyRoot(51.4, (85.301, 72.065, 37.653), (100.758, 0.0, 0.0))
     human.KeyJoints(51.4, {
-        'right_hip': (12.135, -2.548, 5.09), 'right_knee': (17.899,),
-        'right_ankle': (5.582, -1.412), 'left_hip': (22.175, 1.155, -0.526), 'left_knee': (66.181,),
+        'right_hip': (12.137, -2.548, 5.09), 'right_knee': (17.903,),
+        'right_ankle': (5.585, -1.412), 'left_hip': (22.175, 1.155, -0.526), 'left_knee': (66.181,),
         'left_ankle': (18.852, 0.97),
     })
     human.KeyRoot(51.5, (89.875, 72.002, 37.21), (97.733, 0.0, 0.0))
@@ -2592,19 +2589,19 @@ def remove_access_panel_cad():
     human.KeyRoot(51.8, (122.619, 71.115, 25.394), (90.0, 0.0, 0.0))
     human.KeyJoints(51.8, {
         'right_hip': (-2.101, 0.586, 16.24), 'right_knee': (47.497,),
-        'right_ankle': (9.505, -0.033), 'left_hip': (18.533, 2.428, 0.814), 'left_knee': (21.552,),
-        'left_ankle': (3.042, 2.561),
+        'right_ankle': (9.505, -0.033), 'left_hip': (18.514, 2.428, 0.813), 'left_knee': (21.512,),
+        'left_ankle': (3.015, 2.561),
     })
     human.KeyRoot(51.9, (122.361, 71.356, 23.693), (90.0, 0.0, 0.0))
     human.KeyJoints(51.9, {
         'right_hip': (1.682, 0.97, 17.058), 'right_knee': (53.33,), 'right_ankle': (12.594, 1.817),
-        'left_hip': (17.691, 1.016, 0.324), 'left_knee': (19.387,), 'left_ankle': (1.702, 1.066),
+        'left_hip': (17.677, 1.016, 0.324), 'left_knee': (19.357,), 'left_ankle': (1.683, 1.066),
     })
     human.KeyRoot(52.0, (121.916, 71.618, 22.478), (90.0, 0.0, 0.0))
     human.KeyJoints(52.0, {
         'right_hip': (11.402, 0.869, 14.292), 'right_knee': (56.017,),
-        'right_ankle': (19.296, 4.028), 'left_hip': (16.394, 0.004, 0.001), 'left_knee': (15.911,),
-        'left_ankle': (-0.469, 0.004),
+        'right_ankle': (19.296, 4.028), 'left_hip': (16.355, 0.004, 0.001), 'left_knee': (15.841,),
+        'left_ankle': (-0.514, 0.004),
     })
     human.KeyRoot(52.1, (121.982, 71.86, 22.183), (90.0, 0.0, 0.0))
     human.KeyJoints(52.1, {
@@ -2619,25 +2616,23 @@ def remove_access_panel_cad():
     })
     human.KeyRoot(52.3, (129.21, 72.264, 22.406), (90.0, 0.0, 0.0))
     human.KeyJoints(52.3, {
-        'right_hip': (10.536, 0.056, 0.011), 'right_knee': (16.865,), 'right_ankle': (6.335, 0.057),
+        'right_hip': (10.514, 0.056, 0.01), 'right_knee': (16.819,), 'right_ankle': (6.306, 0.057),
         'left_hip': (10.514, -0.056, -0.01), 'left_knee': (16.819,), 'left_ankle': (6.306, -0.057),
     })
-    human.KeyRoot(52.4, (131.346, 72.988, 22.472), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.4, (131.346, 72.991, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(52.4, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (3.119, 0.0, 0.0),
-        'right_knee': (5.12,), 'right_ankle': (2.003, 0.0), 'left_hip': (3.105, 0.0, 0.0),
-        'left_knee': (5.09,), 'left_ankle': (1.987, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (2.874, 0.0, 0.0),
+        'right_knee': (4.602,), 'right_ankle': (1.728, 0.0), 'left_hip': (2.874, 0.0, 0.0),
+        'left_knee': (4.602,), 'left_ankle': (1.728, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
-    human.KeyRoot(52.5, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
+    human.KeyRoot(52.5, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(52.5, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
     human.KeyJoints(52.6, {
         'neck': (23.728, 22.881, -14.015), 'head': (10.169, -7.627),
         'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
-        'left_elbow': (20.254, 18.178), 'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,),
-        'right_ankle': (1.909, 0.0), 'left_hip': (3.031, 0.0, 0.0), 'left_knee': (4.935,),
-        'left_ankle': (1.906, 0.0),
+        'left_elbow': (20.254, 18.178),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
@@ -2646,8 +2641,6 @@ def remove_access_panel_cad():
         'right_shoulder': (32.834, 37.353, -9.633), 'right_elbow': (90.776, 22.837),
         'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.717, -29.213, 14.723),
         'left_elbow': (20.484, 18.166), 'left_wrist': (0.904, -5.536),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)

@@ -55,28 +55,28 @@ def remove_avionics_unit():
         'right_ankle': (-8.201, 0.899), 'left_hip': (-1.276, -0.787, -0.563),
         'left_knee': (48.499,), 'left_ankle': (12.949, -0.968),
     })
-    human.KeyRoot(0.7, (-0.047, 70.733, 38.31), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.047, 70.724, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (20.875, -0.039, -0.015), 'right_knee': (21.045,),
-        'right_ankle': (0.16, -0.042), 'left_hip': (-4.154, 0.035, 0.032), 'left_knee': (48.523,),
+        'right_hip': (20.902, -0.039, -0.015), 'right_knee': (21.103,),
+        'right_ankle': (0.201, -0.042), 'left_hip': (-4.154, 0.035, 0.032), 'left_knee': (48.523,),
         'left_ankle': (5.516, 0.047),
     })
-    human.KeyRoot(0.8, (-1.168, 71.214, 38.31), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.168, 71.207, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (18.357, -0.971, -0.322), 'right_knee': (15.894,),
-        'right_ankle': (-2.467, -1.023), 'left_hip': (-0.32, 0.843, 0.827), 'left_knee': (53.779,),
+        'right_hip': (18.388, -0.971, -0.323), 'right_knee': (15.961,),
+        'right_ankle': (-2.425, -1.023), 'left_hip': (-0.32, 0.843, 0.827), 'left_knee': (53.779,),
         'left_ankle': (9.537, 1.181),
     })
-    human.KeyRoot(0.9, (-2.188, 71.474, 38.31), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.188, 71.47, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.429, -1.83, -0.539), 'right_knee': (11.912,),
-        'right_ankle': (-4.512, -1.908), 'left_hip': (10.827, 1.707, 1.291), 'left_knee': (56.499,),
+        'right_hip': (16.458, -1.83, -0.54), 'right_knee': (11.974,),
+        'right_ankle': (-4.475, -1.908), 'left_hip': (10.827, 1.707, 1.291), 'left_knee': (56.499,),
         'left_ankle': (18.925, 2.163),
     })
-    human.KeyRoot(1.0, (-2.358, 71.48, 38.681), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 71.478, 38.681), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.541, -1.971, -0.585), 'right_knee': (12.813,),
-        'right_ankle': (-3.72, -2.056), 'left_hip': (19.878, 1.938, 1.059), 'left_knee': (47.416,),
+        'right_hip': (16.55, -1.971, -0.586), 'right_knee': (12.831,),
+        'right_ankle': (-3.709, -2.056), 'left_hip': (19.878, 1.938, 1.059), 'left_knee': (47.416,),
         'left_ankle': (18.936, 2.209),
     })
     human.KeyRoot(1.1, (-1.543, 71.559, 42.595), (0.0, 0.0, 0.0))
@@ -85,11 +85,11 @@ def remove_avionics_unit():
         'right_ankle': (3.152, -1.344), 'left_hip': (20.673, 1.291, 0.488), 'left_knee': (34.303,),
         'left_ankle': (13.771, 1.381),
     })
-    human.KeyRoot(1.2, (-0.487, 72.08, 47.663), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 72.077, 47.663), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'right_hip': (11.61, -0.412, -0.085), 'right_knee': (18.752,),
-        'right_ankle': (7.142, -0.421), 'left_hip': (11.602, 0.412, 0.085), 'left_knee': (18.734,),
-        'left_ankle': (7.131, 0.421),
+        'right_ankle': (7.142, -0.421), 'left_hip': (11.61, 0.412, 0.085), 'left_knee': (18.752,),
+        'left_ankle': (7.142, 0.421),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
@@ -97,16 +97,12 @@ def remove_avionics_unit():
     human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     human.KeyRoot(1.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.016, 0.0, 0.0),
-        'left_knee': (4.902,), 'left_ankle': (1.889, 0.0),
+        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.4, {'neck': (-6.498, 0.0, 0.0), 'head': (-5.508, 0.0)})
-    human.KeyJoints(1.5, {
-        'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0), 'right_hip': (3.019, 0.0, 0.0),
-        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
-        'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
-    })
+    human.KeyJoints(1.5, {'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0)})
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
@@ -117,8 +113,6 @@ def remove_avionics_unit():
         'right_shoulder': (8.593, 5.778, 11.444), 'right_elbow': (34.371, 17.186),
         'left_clavicle': (0.008, 0.003), 'left_shoulder': (8.631, 5.732, 11.457),
         'left_elbow': (34.377, 17.163), 'left_wrist': (-0.002, -0.001),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
         'spine_lumbar': (0.049, -0.039, -0.141), 'spine_thoracic': (0.128, 0.011, -0.283),
@@ -471,26 +465,27 @@ def remove_avionics_unit():
         'right_hip': (7.07, 2.973, -18.824), 'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
         'left_hip': (15.561, 2.817, -13.346), 'left_knee': (31.733,), 'left_ankle': (8.741, -0.916),
     })
-    human.KeyRoot(7.6, (0.379, 72.499, 48.508), (-16.969, 0.0, 0.0))
+    human.KeyRoot(7.6, (0.379, 72.487, 48.508), (-16.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'right_hip': (7.453, 1.525, -15.532), 'right_knee': (14.604,),
-        'right_ankle': (7.016, -0.533), 'left_hip': (16.709, 4.993, -16.242),
-        'left_knee': (34.812,), 'left_ankle': (8.391, -0.023),
+        'right_hip': (7.524, 1.545, -15.53), 'right_knee': (14.759,),
+        'right_ankle': (7.097, -0.533), 'left_hip': (16.739, 5.001, -16.24), 'left_knee': (34.878,),
+        'left_ankle': (8.424, -0.023),
     })
-    human.KeyRoot(7.7, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
+    human.KeyRoot(7.7, (-0.637, 72.487, 48.638), (-21.678, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'right_hip': (7.631, 0.111, -10.969), 'right_knee': (14.461,),
+        'right_hip': (7.675, 0.12, -10.968), 'right_knee': (14.555,),
         'left_hip': (19.106, 7.456, -17.844), 'left_knee': (42.234,), 'left_ankle': (13.375, 0.972),
     })
-    human.KeyRoot(7.8, (-1.678, 72.492, 48.923), (-27.207, 0.0, 0.0))
+    human.KeyRoot(7.8, (-1.678, 72.487, 48.923), (-27.207, 0.0, 0.0))
     human.KeyJoints(7.8, {
-        'right_hip': (7.514, -1.344, -5.58), 'right_knee': (14.166,), 'right_ankle': (6.81, -2.055),
-        'left_hip': (21.891, 6.012, -10.938), 'left_knee': (46.992,), 'left_ankle': (19.216, 1.41),
+        'right_hip': (7.541, -1.342, -5.58), 'right_knee': (14.222,),
+        'right_ankle': (6.842, -2.055), 'left_hip': (21.891, 6.012, -10.938),
+        'left_knee': (46.992,), 'left_ankle': (19.216, 1.41),
     })
-    human.KeyRoot(7.9, (-2.331, 72.517, 49.319), (-32.671, 0.0, 0.0))
+    human.KeyRoot(7.9, (-2.331, 72.513, 49.319), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.9, {
-        'right_hip': (8.13, -2.368, -0.258), 'right_knee': (15.546,),
-        'right_ankle': (6.914, -2.379), 'left_hip': (22.336, 1.204, 1.029), 'left_knee': (45.501,),
+        'right_hip': (8.156, -2.368, -0.253), 'right_knee': (15.601,),
+        'right_ankle': (6.942, -2.379), 'left_hip': (22.336, 1.204, 1.029), 'left_knee': (45.501,),
         'left_ankle': (19.184, 1.463),
     })
     human.KeyRoot(8.0, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
@@ -508,19 +503,19 @@ def remove_avionics_unit():
     human.KeyRoot(8.2, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
     human.KeyJoints(8.2, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
-        'right_ankle': (9.674, -0.561), 'left_hip': (5.795, -2.719, 16.805), 'left_knee': (14.725,),
-        'left_ankle': (8.395, -0.916),
+        'right_ankle': (9.674, -0.561), 'left_hip': (5.777, -2.713, 16.804), 'left_knee': (14.686,),
+        'left_ankle': (8.371, -0.916),
     })
     human.KeyRoot(8.3, (-2.595, 72.487, 53.808), (-53.295, 0.0, 0.0))
     human.KeyJoints(8.3, {
         'right_hip': (17.461, -6.382, 19.178), 'right_knee': (37.781,),
-        'right_ankle': (10.797, -0.07), 'left_hip': (5.539, -2.43, 11.654),
-        'left_ankle': (8.625, -1.251),
+        'right_ankle': (10.797, -0.07), 'left_hip': (5.527, -2.427, 11.653),
+        'left_ankle': (8.609, -1.251),
     })
     human.KeyRoot(8.4, (-1.531, 72.487, 53.829), (-58.451, 0.0, 0.0))
     human.KeyJoints(8.4, {
         'right_hip': (21.602, -5.708, 15.063), 'right_knee': (45.621,),
-        'right_ankle': (17.881, 0.398), 'left_hip': (5.817, -2.431, 6.48), 'left_knee': (14.401,),
+        'right_ankle': (17.881, 0.398), 'left_hip': (5.793, -2.431, 6.463), 'left_knee': (14.355,),
     })
     human.KeyRoot(8.5, (-0.364, 72.487, 53.837), (-63.607, 0.0, 0.0))
     human.KeyJoints(8.5, {
@@ -541,24 +536,24 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.8, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'right_hip': (7.217, 2.14, -17.928), 'right_knee': (14.839,),
-        'right_ankle': (7.317, -0.196), 'left_hip': (12.959, 2.948, -14.252), 'left_knee': (25.35,),
+        'right_hip': (7.209, 2.137, -17.926), 'right_knee': (14.819,),
+        'right_ankle': (7.305, -0.196), 'left_hip': (12.959, 2.948, -14.252), 'left_knee': (25.35,),
         'left_ankle': (8.267, -0.38),
     })
     human.KeyRoot(8.9, (2.334, 72.487, 49.607), (-83.144, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'right_hip': (7.751, 0.912, -14.564), 'right_ankle': (6.901, -1.068),
+        'right_hip': (7.745, 0.91, -14.562), 'right_ankle': (6.893, -1.068),
         'left_hip': (13.156, 4.677, -17.385), 'left_knee': (26.784,), 'left_ankle': (8.367, 0.447),
     })
     human.KeyRoot(9.0, (1.802, 72.487, 48.882), (-85.746, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'right_hip': (7.605, -0.117, -12.089), 'right_ankle': (7.039, -1.696),
+        'right_hip': (7.593, -0.117, -12.066), 'right_ankle': (7.018, -1.696),
         'left_hip': (18.509, 7.058, -16.276), 'left_knee': (39.353,), 'left_ankle': (16.186, 1.29),
     })
     human.KeyRoot(9.1, (1.069, 72.487, 48.39), (-88.06, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'right_hip': (7.181, -0.882, -9.82), 'right_knee': (14.272,),
-        'right_ankle': (7.341, -2.084), 'left_hip': (21.279, 6.318, -10.704),
+        'right_hip': (7.179, -0.882, -9.816), 'right_knee': (14.268,),
+        'right_ankle': (7.338, -2.084), 'left_hip': (21.279, 6.318, -10.704),
         'left_knee': (44.664,), 'left_ankle': (18.954, 1.894),
     })
     human.KeyRoot(9.2, (0.438, 72.69, 48.375), (-90.665, 0.0, 0.0))
@@ -578,21 +573,21 @@ def remove_avionics_unit():
         'right_ankle': (-4.997, -0.622), 'left_hip': (7.593, 0.352, 0.862), 'left_knee': (15.684,),
         'left_ankle': (8.125, 0.459),
     })
-    human.KeyRoot(9.5, (-1.652, 72.448, 50.83), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.5, (-1.652, 72.447, 50.83), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.5, {
         'right_hip': (35.11, 0.096, 0.322), 'right_knee': (61.101,),
-        'right_ankle': (-12.343, 0.336), 'left_hip': (6.548, -0.207, -0.023), 'left_knee': (15.3,),
-        'left_ankle': (8.752, -0.208),
+        'right_ankle': (-12.343, 0.336), 'left_hip': (6.551, -0.206, -0.024),
+        'left_knee': (15.307,), 'left_ankle': (8.756, -0.208),
     })
-    human.KeyRoot(9.6, (-3.655, 72.206, 51.25), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.6, (-3.655, 72.205, 51.25), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.6, {
         'right_hip': (36.786, 0.364, 1.217), 'right_knee': (65.859,), 'right_ankle': (-7.617, 1.27),
-        'left_hip': (5.928, -0.794, -0.082), 'left_knee': (17.504,), 'left_ankle': (11.576, -0.798),
+        'left_hip': (5.93, -0.794, -0.082), 'left_knee': (17.507,), 'left_ankle': (11.578, -0.798),
     })
-    human.KeyRoot(9.7, (-6.648, 71.984, 51.585), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.7, (-6.648, 71.983, 51.585), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.7, {
         'right_hip': (37.582, 0.969, 1.643), 'right_knee': (62.681,), 'right_ankle': (3.103, 1.908),
-        'left_hip': (3.525, -1.433, -0.084), 'left_ankle': (14.231, -1.436),
+        'left_hip': (3.525, -1.433, -0.088), 'left_ankle': (14.235, -1.436),
     })
     human.KeyRoot(9.8, (-10.22, 72.001, 51.756), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.8, {
@@ -617,14 +612,14 @@ def remove_avionics_unit():
     })
     human.KeyRoot(10.2, (-31.849, 71.25, 46.271), (-97.636, 0.0, 0.0))
     human.KeyJoints(10.2, {
-        'right_hip': (18.053, -0.175, -0.12), 'right_knee': (21.575,),
-        'right_ankle': (3.523, -0.204), 'left_hip': (11.5, 0.09, 0.348), 'left_knee': (64.101,),
+        'right_hip': (18.048, -0.175, -0.12), 'right_knee': (21.565,),
+        'right_ankle': (3.517, -0.204), 'left_hip': (11.5, 0.09, 0.348), 'left_knee': (64.101,),
         'left_ankle': (-6.498, 0.307),
     })
     human.KeyRoot(10.3, (-34.678, 71.734, 44.922), (-96.682, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'right_hip': (14.711, -0.743, -1.242), 'right_knee': (20.252,),
-        'right_ankle': (5.56, -1.034), 'left_hip': (12.972, 0.511, 2.114), 'left_knee': (66.425,),
+        'right_hip': (14.708, -0.743, -1.242), 'right_knee': (20.248,),
+        'right_ankle': (5.556, -1.034), 'left_hip': (12.972, 0.511, 2.114), 'left_knee': (66.425,),
         'left_ankle': (0.748, 1.61),
     })
     human.KeyRoot(10.4, (-37.283, 72.181, 43.703), (-95.126, 0.0, 0.0))
@@ -651,23 +646,23 @@ def remove_avionics_unit():
         'right_ankle': (16.115, -0.528), 'left_hip': (20.933, -0.954, -0.954),
         'left_knee': (14.78,), 'left_ankle': (-6.067, -1.232),
     })
-    human.KeyRoot(10.8, (-70.11, 71.113, 41.357), (-90.001, 0.0, 0.0))
+    human.KeyRoot(10.8, (-70.11, 71.11, 41.357), (-90.001, 0.0, 0.0))
     human.KeyJoints(10.8, {
         'right_hip': (0.944, 0.199, -7.636), 'right_knee': (49.984,),
-        'right_ankle': (10.732, 0.091), 'left_hip': (18.949, -1.125, -0.387),
-        'left_knee': (20.342,), 'left_ankle': (1.393, -1.19),
+        'right_ankle': (10.732, 0.091), 'left_hip': (18.959, -1.125, -0.387),
+        'left_knee': (20.361,), 'left_ankle': (1.407, -1.19),
     })
-    human.KeyRoot(10.9, (-70.301, 71.353, 41.949), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.9, (-70.301, 71.351, 41.949), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.9, {
         'right_hip': (4.368, 1.006, -7.081), 'right_knee': (55.782,),
-        'right_ankle': (13.303, 0.637), 'left_hip': (17.676, -1.622, -0.517),
-        'left_knee': (18.065,), 'left_ankle': (0.393, -1.702),
+        'right_ankle': (13.303, 0.637), 'left_hip': (17.684, -1.622, -0.517),
+        'left_knee': (18.081,), 'left_ankle': (0.404, -1.702),
     })
-    human.KeyRoot(11.0, (-70.396, 71.614, 43.011), (-90.0, 0.0, 0.0))
+    human.KeyRoot(11.0, (-70.396, 71.613, 43.011), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.0, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.793, 2.22, -4.887),
         'right_knee': (57.652,), 'right_ankle': (19.416, 1.222),
-        'left_hip': (15.958, -2.518, -0.72), 'left_knee': (14.676,), 'left_ankle': (-1.267, -2.619),
+        'left_hip': (15.962, -2.518, -0.72), 'left_knee': (14.686,), 'left_ankle': (-1.26, -2.619),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=11.003216, duration=1.397891)
@@ -687,42 +682,39 @@ def remove_avionics_unit():
     human.KeyRoot(11.3, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.3, {
         'neck': (21.031, -20.28, 9.021), 'head': (9.013, 6.751),
-        'right_hip': (10.584, 0.664, 0.124), 'right_knee': (16.964,), 'right_ankle': (6.389, 0.676),
+        'right_hip': (10.552, 0.664, 0.124), 'right_knee': (16.897,), 'right_ankle': (6.345, 0.676),
         'left_hip': (10.552, -0.664, -0.124), 'left_knee': (16.897,), 'left_ankle': (6.345, -0.676),
     })
-    human.KeyRoot(11.4, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
+    human.KeyRoot(11.4, (-79.996, 72.986, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.4, {
         'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
-        'right_hip': (3.252, 0.001, 0.0), 'right_knee': (5.396,), 'right_ankle': (2.139, 0.001),
-        'left_hip': (3.225, -0.001, 0.0), 'left_knee': (5.337,), 'left_ankle': (2.102, -0.001),
+        'right_hip': (2.974, 0.001, 0.0), 'right_knee': (4.811,), 'right_ankle': (1.836, 0.001),
+        'left_hip': (2.974, -0.001, 0.0), 'left_knee': (4.811,), 'left_ankle': (1.836, -0.001),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(11.5, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyRoot(11.5, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.5, {
         'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
         'right_shoulder': (2.557, 164.029, -39.354), 'right_elbow': (8.192, 8.141),
         'right_wrist': (12.393, -10.943), 'left_shoulder': (21.513, 161.878, -63.616),
-        'left_elbow': (9.013, -65.117), 'left_wrist': (8.188, -1.538), 'right_knee': (5.111,),
-        'left_knee': (5.084,),
+        'left_elbow': (9.013, -65.117), 'left_wrist': (8.188, -1.538),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(11.6, {
         'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
         'right_shoulder': (5.145, 154.451, -33.69), 'right_elbow': (12.97, 4.812),
         'right_wrist': (14.255, -11.833), 'left_shoulder': (22.411, 154.185, -56.567),
-        'left_elbow': (14.903, -64.255), 'left_wrist': (11.281, -2.77), 'right_knee': (4.96,),
-        'right_ankle': (1.919, 0.0), 'left_hip': (3.039, 0.0, 0.0), 'left_knee': (4.95,),
-        'left_ankle': (1.914, 0.0),
+        'left_elbow': (14.903, -64.255), 'left_wrist': (11.281, -2.77),
     })
     human.KeyJoints(11.7, {
         'right_shoulder': (10.279, 135.448, -22.421), 'right_elbow': (22.449, -1.792),
         'right_wrist': (17.948, -13.607), 'left_shoulder': (24.193, 138.92, -42.553),
         'left_elbow': (26.588, -62.533), 'left_wrist': (17.418, -5.227),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(11.8, {
         'right_shoulder': (17.121, 110.12, -7.241), 'right_elbow': (35.075, -10.592),

@@ -56,28 +56,28 @@ def replace_fuel_filter():
         'right_ankle': (-7.716, -1.893), 'left_hip': (2.888, 0.04, -9.703), 'left_knee': (49.757,),
         'left_ankle': (12.164, -0.544),
     })
-    human.KeyRoot(0.7, (-0.049, 88.715, 40.902), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.049, 88.706, 40.902), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (19.235, -1.72, -0.6), 'right_knee': (18.399,),
-        'right_ankle': (-0.837, -1.822), 'left_hip': (0.982, 0.298, -10.319),
+        'right_hip': (19.259, -1.72, -0.601), 'right_knee': (18.448,),
+        'right_ankle': (-0.802, -1.822), 'left_hip': (0.982, 0.298, -10.319),
         'left_knee': (51.349,), 'left_ankle': (5.847, 0.164),
     })
-    human.KeyRoot(0.8, (-1.01, 89.016, 41.097), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.01, 89.009, 41.097), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.77, -2.333, -0.747), 'right_knee': (15.977,),
-        'right_ankle': (-1.785, -2.45), 'left_hip': (4.306, 1.326, -9.487), 'left_knee': (56.147,),
+        'right_hip': (17.792, -2.333, -0.748), 'right_knee': (16.023,),
+        'right_ankle': (-1.754, -2.45), 'left_hip': (4.306, 1.326, -9.487), 'left_knee': (56.147,),
         'left_ankle': (9.674, 0.803),
     })
-    human.KeyRoot(0.9, (-1.895, 89.209, 41.212), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (-1.895, 89.204, 41.212), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.691, -2.909, -0.869), 'right_knee': (14.21,),
-        'right_ankle': (-2.494, -3.036), 'left_hip': (13.44, 2.416, -6.829), 'left_knee': (56.858,),
+        'right_hip': (16.707, -2.909, -0.87), 'right_knee': (14.244,),
+        'right_ankle': (-2.473, -3.036), 'left_hip': (13.44, 2.416, -6.829), 'left_knee': (56.858,),
         'left_ankle': (18.918, 0.842),
     })
-    human.KeyRoot(1.0, (-2.044, 89.193, 41.885), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.044, 89.191, 41.885), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.822, -2.921, -0.883), 'right_knee': (15.409,),
-        'right_ankle': (-1.393, -3.052), 'left_hip': (20.431, 2.453, -3.097),
+        'right_hip': (16.827, -2.921, -0.883), 'right_knee': (15.419,),
+        'right_ankle': (-1.386, -3.052), 'left_hip': (20.431, 2.453, -3.097),
         'left_knee': (46.712,), 'left_ankle': (18.93, 1.224),
     })
     human.KeyRoot(1.1, (-1.338, 89.461, 46.51), (-10.437, 0.0, 0.0))
@@ -86,13 +86,13 @@ def replace_fuel_filter():
         'right_ankle': (3.487, -1.98), 'left_hip': (20.08, 1.711, -0.305), 'left_knee': (33.199,),
         'left_ankle': (13.246, 1.503),
     })
-    human.KeyRoot(1.2, (-0.422, 90.158, 52.336), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.422, 90.155, 52.336), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (10.698, -0.607, -0.115), 'right_knee': (17.017,),
-        'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115), 'left_knee': (17.002,),
-        'left_ankle': (6.31, 0.618),
+        'right_ankle': (6.32, -0.618), 'left_hip': (10.698, 0.607, 0.115), 'left_knee': (17.017,),
+        'left_ankle': (6.32, 0.618),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
     human.KeyRoot(1.3, (0.15, 91.079, 55.29), (-10.437, 0.0, 0.0))

@@ -56,28 +56,28 @@ def replace_fuel_filter_cad():
         'right_ankle': (-7.3, -1.22), 'left_hip': (2.831, -0.157, -7.485), 'left_knee': (49.578,),
         'left_ankle': (12.299, -0.636),
     })
-    human.KeyRoot(0.7, (-0.072, 88.715, 41.208), (-7.907, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.072, 88.706, 41.208), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (19.315, -1.301, -0.456), 'right_knee': (18.85,),
-        'right_ankle': (-0.47, -1.379), 'left_hip': (0.933, 0.221, -7.815), 'left_knee': (51.187,),
+        'right_hip': (19.338, -1.301, -0.456), 'right_knee': (18.897,),
+        'right_ankle': (-0.436, -1.379), 'left_hip': (0.933, 0.221, -7.815), 'left_knee': (51.187,),
         'left_ankle': (6.066, 0.129),
     })
-    human.KeyRoot(0.8, (-1.111, 89.016, 41.345), (-7.907, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.111, 89.009, 41.345), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.883, -1.978, -0.638), 'right_knee': (16.375,),
-        'right_ankle': (-1.504, -2.078), 'left_hip': (4.346, 1.187, -7.002), 'left_knee': (56.038,),
+        'right_hip': (17.904, -1.978, -0.639), 'right_knee': (16.418,),
+        'right_ankle': (-1.474, -2.078), 'left_hip': (4.346, 1.187, -7.002), 'left_knee': (56.038,),
         'left_ankle': (9.871, 0.867),
     })
-    human.KeyRoot(0.9, (-2.06, 89.196, 41.423), (-7.907, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.06, 89.191, 41.423), (-7.907, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.826, -2.603, -0.787), 'right_knee': (14.54,),
-        'right_ankle': (-2.273, -2.72), 'left_hip': (13.567, 2.215, -4.881), 'left_knee': (57.062,),
+        'right_hip': (16.842, -2.603, -0.788), 'right_knee': (14.572,),
+        'right_ankle': (-2.252, -2.72), 'left_hip': (13.567, 2.215, -4.881), 'left_knee': (57.062,),
         'left_ankle': (18.916, 1.101),
     })
-    human.KeyRoot(1.0, (-2.219, 89.193, 42.025), (-7.907, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.219, 89.191, 42.025), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.918, -2.652, -0.806), 'right_knee': (15.582,),
-        'right_ankle': (-1.319, -2.772), 'left_hip': (20.455, 2.292, -2.116),
+        'right_hip': (16.923, -2.652, -0.807), 'right_knee': (15.592,),
+        'right_ankle': (-1.313, -2.772), 'left_hip': (20.455, 2.292, -2.116),
         'left_knee': (46.689,), 'left_ankle': (18.928, 1.418),
     })
     human.KeyRoot(1.1, (-1.452, 89.461, 46.574), (-7.907, 0.0, 0.0))
@@ -86,13 +86,13 @@ def replace_fuel_filter_cad():
         'right_ankle': (3.478, -1.803), 'left_hip': (20.106, 1.588, -0.124), 'left_knee': (33.197,),
         'left_ankle': (13.224, 1.448),
     })
-    human.KeyRoot(1.2, (-0.458, 90.158, 52.352), (-7.907, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.458, 90.155, 52.352), (-7.907, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (10.71, -0.553, -0.105), 'right_knee': (17.018,),
-        'right_ankle': (6.309, -0.563), 'left_hip': (10.702, 0.553, 0.105), 'left_knee': (17.003,),
-        'left_ankle': (6.3, 0.563),
+        'right_ankle': (6.309, -0.563), 'left_hip': (10.71, 0.553, 0.105), 'left_knee': (17.018,),
+        'left_ankle': (6.309, 0.563),
     })
     # examples/replace_fuel_filter_cad.mtask:38:5 replace_fuel_filter_cad > kneel: posture on root
     human.KeyRoot(1.3, (0.16, 91.079, 55.283), (-7.907, 0.0, 0.0))

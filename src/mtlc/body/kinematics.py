@@ -502,6 +502,13 @@ def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
     return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
 
 
+def bits_differ(a: ArrayLike, b: ArrayLike) -> NDArray[np.bool_]:
+    """Elementwise whether two float arrays of one shape differ bit for bit (-0.0 is not 0.0):
+    which angles a pass changed, where equal-within-rounding would hide a changed last bit."""
+    x = np.ascontiguousarray(a, dtype=float).view(np.int64)
+    return x != np.ascontiguousarray(b, dtype=float).view(np.int64)
+
+
 def forward_changed(
     skel: Skeleton,
     q: ArrayLike,
@@ -518,7 +525,7 @@ def forward_changed(
     qa = np.asarray(q, dtype=float)
     if len(qa) == 0 or qa.shape != np.shape(base_q):
         return forward(skel, qa, root_position, root_rotation, with_axes=False)
-    bits = np.ascontiguousarray(qa).view(np.int64) != np.ascontiguousarray(base_q).view(np.int64)
+    bits = bits_differ(qa, base_q)
     joints = np.unique(skel.dof_joint[np.flatnonzero(bits.any(axis=0))])
     # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
     tops = joints[skel.ancestor[np.ix_(joints, joints)].sum(axis=1) == 1].tolist()

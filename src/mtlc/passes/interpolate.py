@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mtlc.body import part_site_positions
+from mtlc.body.kinematics import bits_differ
 from mtlc.ir.model import FloatArray, Frames, MotionIR, yaw_quaternion
 from mtlc.ir.pchip import pchip
 from mtlc.passes.context import INTERNAL_FPS, PassContext
@@ -271,9 +272,8 @@ def feet_summary_rows(
     if len(q) == 0:
         return np.zeros((0, 3)), np.zeros(0)
     legs = np.concatenate([q[:, foot_chain_dofs(skel)], rotation], axis=1)
-    bits = np.ascontiguousarray(legs).view(np.int64)  # -0.0 is not 0.0 here
     new = np.ones(len(q), dtype=bool)
-    new[1:] = (bits[1:] != bits[:-1]).any(axis=1)
+    new[1:] = bits_differ(legs[1:], legs[:-1]).any(axis=1)  # -0.0 is not 0.0 here
     rows = np.flatnonzero(new)
     centre, lowest = np.empty((len(rows), 3)), np.empty(len(rows))
     for a in range(0, len(rows), CHUNK_FRAMES):  # a chunk's feet are 96 bytes a frame

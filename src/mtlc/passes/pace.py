@@ -27,7 +27,7 @@ import numpy as np
 
 from mtlc.body import Pose, forward_part, part_site_positions, site_positions
 from mtlc.body.capsules import limbs_of_sides, measured_points, self_intersection
-from mtlc.body.kinematics import forward_changed
+from mtlc.body.kinematics import bits_differ, forward_changed
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
@@ -308,11 +308,9 @@ def approach_depth(
 def _same_root(a: Frames, b: Frames) -> bool:
     """Whether two paths' roots are the same, bit for bit."""
     return all(
-        x is y or (np.shape(x) == np.shape(y) and np.array_equal(
-            np.ascontiguousarray(x).view(np.int64), np.ascontiguousarray(y).view(np.int64)
-        ))
+        x is y or (np.shape(x) == np.shape(y) and not bits_differ(x, y).any())
         for x, y in ((a.root_position, b.root_position), (a.root_rotation, b.root_rotation))
-    )  # fmt: skip
+    )
 
 
 def _smoothed(

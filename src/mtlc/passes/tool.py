@@ -30,6 +30,7 @@ import numpy as np
 
 from mtlc.body import forward, part_site_positions, site_positions, site_rotation
 from mtlc.body.ik import ChainModel, Goal, prepare, solve_ta
+from mtlc.body.kinematics import bits_differ
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
@@ -566,15 +567,28 @@ def _even_out(
     q = q.copy()
     gap = np.maximum(np.diff(clock), 1e-9)
     after = (gap[:-1] / (gap[:-1] + gap[1:]))[:, None]  # share of the way from key i-1 to i+1
+    last: tuple[FloatArray, FloatArray, FloatArray] | None = None  # guess, moved, new_err
     for _ in range(EVEN_ROUNDS):
         guess = 0.5 * q[inner] + 0.5 * ((1.0 - after) * q[:-2] + after * q[2:])
         if rows is None:
             moved = solve_ta(skel, goals, guess, model=model, restarts=0, null_gain=0.0,
                              tol=2e-4, root_position=rp, root_rotation=rr).q  # fmt: skip
+            new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
         else:  # the same poses (``chain_ik``), without the general path's overhead
-            moved = solve_rows(rows, targets, guess, model.lower, model.upper,
-                               skel.q_comfort[act], tol=2e-4, null_gain=0.0)  # fmt: skip
-        new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
+            # a key whose guess is the last round's, to the bit, is solved as it was then
+            # (each row's solve is its own arithmetic): only the keys whose neighbourhood
+            # moved are solved again (a key out of reach is never taken: its guess repeats)
+            ask = np.arange(k - 2) if last is None else np.flatnonzero(
+                bits_differ(guess, last[0]).any(axis=1))  # fmt: skip
+            moved = np.empty_like(guess) if last is None else last[1].copy()
+            new_err = np.empty(k - 2) if last is None else last[2].copy()
+            if ask.size:
+                moved[ask] = solve_rows(rows, targets[ask], guess[ask], model.lower,
+                                        model.upper, skel.q_comfort[act], tol=2e-4,
+                                        null_gain=0.0)  # fmt: skip
+                new_err[ask] = _errors(state, moved[ask], root, sites,
+                                       [hands[inner][ask], tips[inner][ask]])  # fmt: skip
+            last = (guess, moved.copy(), new_err.copy())
         ok = (new_err <= np.maximum(err, TOLERANCE) + 1e-9) & skel.within_limits(moved)
         was_q, was_err = q[inner].copy(), err
         q[inner][ok] = moved[ok]

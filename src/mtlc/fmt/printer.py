@@ -158,6 +158,7 @@ class _Printer:
         }
         self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
         self.fast = FAST_PATHS
+        self._flat_memo: dict[str, dict[str, str | None]] = {"_line_stmt": {}, "_line_site": {}}
 
     def _survey(self) -> tuple[set[int], list[int]]:
         """One walk over the nodes (there are hundreds of thousands in a large file) for:
@@ -610,11 +611,22 @@ class _Printer:
         so the layout's output would be this very text. Otherwise (None) the document is
         built. ``tests/test_fmt.py`` checks both paths give the same output.
         """
-        if not self.fast or self.pool.any_in(node.span.start, node.span.end):
+        span = node.span
+        if not self.fast or self.pool.any_in(span.start, span.end):
             return None
-        try:
-            text = line(node)
-        except _NotOneLine:
+        # the flat text is a function of the node's source text alone (its tokens, hence its
+        # tree, parentheses and trailing commas, are all inside it): a line written twice in
+        # the file is made once
+        memo = self._flat_memo[line.__name__]
+        source = self.text[span.start : span.end]
+        text = memo.get(source, _UNSEEN)
+        if text is _UNSEEN:
+            try:
+                text = line(node)
+            except _NotOneLine:
+                text = None
+            memo[source] = text
+        if text is None:
             return None
         return text if INDENT * self.depth + len(text) <= LINE_LENGTH else None
 
@@ -890,6 +902,9 @@ class _Printer:
         items = [_Item(x.span.start, x.span.end, self._expr(x)) for x in vector.items]
         doc = self._delimited(open_index, self.src.match[open_index], items)
         return doc if vector.unit is None else [doc, Text(f" {vector.unit}")]
+
+
+_UNSEEN: Any = object()
 
 
 class _NotOneLine(Exception):

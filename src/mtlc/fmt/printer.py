@@ -391,6 +391,10 @@ class _Printer:
 
     def _braces(self, opener: list[Comment], elements: list[tuple[bool, Doc]]) -> Doc:
         """`{` with the comments after it, the elements one per line, `}`."""
+        if self.fast and not opener:
+            plain = self._plain_braces(elements)
+            if plain is not None:
+                return plain
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
@@ -415,6 +419,31 @@ class _Printer:
         if run:
             body.append("".join(run))
         return [*head, Nest(body), HARDLINE, Text("}")]
+
+    def _plain_braces(self, elements: list[tuple[bool, Doc]]) -> str | None:
+        """The block as the one text the layout would print for it, new lines and indentation
+        included, when every element is a text, at most with one trailing comment (None
+        otherwise). No group is inside, so nothing is left to lay out; a comment held to the
+        end of a line is written before the next new line, where the layout would print it."""
+        inner = "\n" + " " * (INDENT * (self.depth + 1))
+        parts = ["{"]
+        for blank, element in elements:
+            text = element if type(element) is str else _with_suffix(element)
+            if not text:
+                return None
+            parts.append("\n" + inner + text if blank else inner + text)  # type: ignore[operator]
+        if len(parts) == 1:
+            parts.append("}")
+        else:
+            parts.append("\n" + " " * (INDENT * self.depth) + "}")
+        return "".join(parts)
+
+    def _joined(self, parts: list[Doc]) -> Doc:
+        """``parts`` as one text when they are all texts (a block among them, see
+        _plain_braces): so the block holding them can be one text too."""
+        if self.fast and all(type(p) is str for p in parts):
+            return "".join(parts)  # type: ignore[arg-type]
+        return parts
 
     def _block(self, block: ast.Block) -> Doc:
         open_index = self.src.starting_at(block.span.start)
@@ -503,21 +532,25 @@ class _Printer:
             case ast.Use():
                 return Text("use " + ".".join(node.module))
             case ast.Scene():
-                return [Text(f"scene {node.name} "), self._scene_body(node)]
+                return self._joined([Text(f"scene {node.name} "), self._scene_body(node)])
             case ast.ToolDecl():
                 entries = [
                     self._entry(p.span, self._bind(self._tool_property, p)) for p in node.properties
                 ]
-                return [Text(f"tool {node.name} "), self._braced_after(node, entries)]
+                return self._joined([Text(f"tool {node.name} "), self._braced_after(node, entries)])
             case ast.Definition():
-                return [
-                    Text(f"{node.kind} {node.name}"),
-                    self._params(node),
-                    Text(" "),
-                    self._block(node.body),
-                ]
+                return self._joined(
+                    [
+                        Text(f"{node.kind} {node.name}"),
+                        self._params(node),
+                        Text(" "),
+                        self._block(node.body),
+                    ]
+                )
             case ast.Task():
-                return [Text(f"task {node.name}{self._title(node)} "), self._block(node.body)]
+                return self._joined(
+                    [Text(f"task {node.name}{self._title(node)} "), self._block(node.body)]
+                )
         raise TypeError(f"cannot format a top-level {type(node).__name__}")
 
     def _braced_after(self, decl: ast.Decl, entries: list[_Entry]) -> Doc:
@@ -589,8 +622,36 @@ class _Printer:
     def _params(self, definition: ast.Definition) -> Doc:
         open_index = self.src.starting_at(definition.name_span.start) + 1
         close_index = self.src.starting_at(definition.body.span.start) - 1
+        flat = self._flat_params(definition, open_index, close_index)
+        if flat is not None:
+            return flat
         items = [_Item(p.span.start, p.span.end, self._param(p)) for p in definition.params]
         return self._delimited(open_index, close_index, items)
+
+    def _flat_params(
+        self, definition: ast.Definition, open_index: int, close_index: int
+    ) -> str | None:
+        """The parameter list as the text the layout prints when its group is flat: when no
+        comment is in it, no magic trailing comma, and the line up to the body's `{` (and a
+        `}` or comment after it: three characters at most) fits. A definition starts a line at
+        the top level, so the group starts at the column of the header's length."""
+        if not self.fast:
+            return None
+        opener, closer = self.src.at(open_index), self.src.at(close_index)
+        if self.pool.any_in(opener.start_pos, closer.end_pos):
+            return None
+        items: list[str] = []
+        try:
+            for p in definition.params:
+                item = f"{p.name}: {p.type_name}"
+                if p.default is not None:
+                    item += " = " + self._line_expr(p.default)
+                items.append(item)
+            text = self._line_list(open_index, close_index, items)
+        except _NotOneLine:
+            return None
+        head = len(definition.kind) + 1 + len(definition.name)
+        return text if self.depth == 0 and head + len(text) + 3 <= LINE_LENGTH else None
 
     def _param(self, param: ast.Param) -> Doc:
         doc: list[Doc] = [Text(f"{param.name}: {param.type_name}")]
@@ -776,16 +837,20 @@ class _Printer:
                     self._args(self.src.match[rpar], rpar, stmt.args),
                 ]
             case ast.Repeat():
-                return [Text("repeat "), self._expr(stmt.count), Text(" "), self._block(stmt.body)]
+                return self._joined(
+                    [Text("repeat "), self._expr(stmt.count), Text(" "), self._block(stmt.body)]
+                )
             case ast.ForEach():
-                return [
-                    Text(f"for {stmt.var} in "),
-                    self._expr(stmt.items),
-                    Text(" "),
-                    self._block(stmt.body),
-                ]
+                return self._joined(
+                    [
+                        Text(f"for {stmt.var} in "),
+                        self._expr(stmt.items),
+                        Text(" "),
+                        self._block(stmt.body),
+                    ]
+                )
             case ast.Parallel():
-                return [Text("parallel "), self._block(stmt.body)]
+                return self._joined([Text("parallel "), self._block(stmt.body)])
             case ast.ManikinSetting():
                 return Text(f"manikin {stmt.population} {stmt.sex} {stmt.percentile}")
             case ast.SceneSetting():
@@ -905,6 +970,25 @@ class _Printer:
 
 
 _UNSEEN: Any = object()
+
+
+def _with_suffix(element: Doc) -> str | None:
+    """An element that is a text and one comment held to the end of a line, before or after
+    it (a hosted comment, or one placed after the element's last line), as the one text the
+    layout prints: the comment goes before the text's first new line (None: another shape)."""
+    if type(element) is not list or len(element) != 2:
+        return None
+    first, second = element
+    if type(first) is LineSuffix and type(second) is str:
+        comment, text = first.text, second
+    elif type(first) is str and type(second) is LineSuffix:
+        return first + second.text if first else None
+    else:
+        return None
+    if not text:
+        return None
+    cut = text.find("\n")
+    return text + comment if cut < 0 else text[:cut] + comment + text[cut:]
 
 
 class _NotOneLine(Exception):

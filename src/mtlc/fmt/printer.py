@@ -46,7 +46,6 @@ TRAILING_COMMENT_GAP = "  "
 # printed flat at once, _one_line; a block or entry with no comment to place, _block and
 # _sequence; a run of plain lines as one text, _braces); tests/test_fmt_paths.py compares both
 FAST_PATHS = True
-_CALLS = frozenset({ast.Call, ast.CallExpr})
 
 
 def _subclasses(cls: type) -> set[type]:
@@ -60,13 +59,13 @@ def _subclasses(cls: type) -> set[type]:
 _ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCHORS))
 
 # what _survey does with a node of each class (no entry: nothing)
-_ANCHOR, _CALL, _BLOCK, _SCENE, _POSTURE = "anchor", "call", "block", "scene", "posture"
+_ANCHOR, _BLOCK, _SCENE = "anchor", "block", "scene"
 _SURVEY_ROLES: dict[type, str] = {kind: _ANCHOR for kind in _ANCHOR_TYPES}
 _SURVEY_ROLES.update(
-    {ast.Call: _CALL, ast.CallExpr: _CALL, ast.Block: _BLOCK, ast.Scene: _SCENE,
-     ast.Posture: _POSTURE}
+    {kind: _BLOCK for kind in _subclasses(ast.Block)}
+    | {kind: _SCENE for kind in _subclasses(ast.Scene)}
 )  # fmt: skip
-assert not issubclass(ast.CallExpr, ANCHORS) and not issubclass(ast.Block, ANCHORS)
+assert not issubclass(ast.Block, ANCHORS)
 assert all(issubclass(k, ANCHORS) for k in (ast.Call, ast.Scene, ast.Posture))
 
 # binding strength: a child that binds less tightly than its place needs parentheses
@@ -119,6 +118,25 @@ def _node_fields(kind: type) -> tuple[str, ...]:
     return names
 
 
+_SURVEY_FIELDS: dict[type, tuple[str, ...]] = {}  # _node_fields without expressions
+# field types that hold only expressions (and arguments): where no line-level thing can be
+_EXPR_TYPES = frozenset({"Expr", "Expr | None", "tuple[Expr, ...]", "tuple[Arg, ...]"})
+
+
+def _survey_fields(kind: type) -> tuple[str, ...]:
+    """The fields of a node class that may hold statements, declarations, scene members or
+    parameters (none for an expression)."""
+    names = _SURVEY_FIELDS.get(kind)
+    if names is None:
+        types = {f.name: f.type for f in dataclasses.fields(kind)}
+        names = _SURVEY_FIELDS[kind] = tuple(
+            name
+            for name in _node_fields(kind)
+            if not issubclass(kind, ast.Expr) and types[name] not in _EXPR_TYPES
+        )
+    return names
+
+
 def nodes(node: object) -> Iterator[ast.Node]:
     """Every AST node under ``node``, itself included, parents before children in field order.
 
@@ -147,8 +165,11 @@ class _Printer:
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
         self.blocks_by_end: dict[int, ast.Block] = {}
-        self.call_parens, self.anchor_starts = self._survey()
-        self.parenthesized = self.src.parenthesized(self.call_parens)
+        self.anchor_starts = self._survey()
+        # the `(` of the calls and postures printed so far (filled by _args and _line_args,
+        # which print a call's arguments after its `(` is here): not parentheses the writer
+        # put around an argument (_wrapped)
+        self.call_parens: set[int] = set()
         # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
         reach: dict[int, int] = {}
         for mark in suppressions.scan(file, text):
@@ -160,40 +181,35 @@ class _Printer:
         self.fast = FAST_PATHS
         self._flat_memo: dict[str, dict[str, str | None]] = {"_line_stmt": {}, "_line_site": {}}
 
-    def _survey(self) -> tuple[set[int], list[int]]:
-        """One walk over the nodes (there are hundreds of thousands in a large file) for:
+    def _survey(self) -> list[int]:
+        """One walk over the statements, declarations, scene members and parameters (not
+        into expressions: no line-level thing is inside one) for:
 
-        - the `(` of calls and postures: not parentheses the writer put around an argument;
         - where line-level things start (statements, declarations, scene members,
           parameters): what a comment on their line is about, and where lint reports findings;
         - the blocks, by where they end (``blocks_by_end``).
         """
-        parens: set[int] = set()
         found: list[int] = []
         src = self.src
-        fields, roles = _FIELDS, _SURVEY_ROLES
-        stack: list[ast.Node] = [self.tree]  # every node, in no particular order
+        fields, roles = _SURVEY_FIELDS, _SURVEY_ROLES
+        stack: list[ast.Node] = [self.tree]  # every such node, in no particular order
         while stack:
             node = stack.pop()
             kind = type(node)
             names = fields.get(kind)
             if names is None:
-                names = _node_fields(kind)
+                names = _survey_fields(kind)
             for name in names:
                 value = getattr(node, name)
                 if type(value) is tuple:
                     stack.extend(value)
                 elif value is not None:
                     stack.append(value)
-            role = roles.get(kind)  # one look-up: most nodes (names, numbers, arguments) have none
+            role = roles.get(kind)
             if role is None:
                 continue
             if role is _ANCHOR:
                 found.append(node.span.start)
-            elif role is _CALL:
-                parens.add(src.match[src.ending_at(node.span.end)])
-                if kind is ast.Call:
-                    found.append(node.span.start)
             elif role is _BLOCK:
                 self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
             elif role is _SCENE:
@@ -201,12 +217,18 @@ class _Printer:
                     keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
                     found.append(int(src.at(keyword).start_pos))
                 found.append(node.span.start)
-            elif role is _POSTURE:
-                found.append(node.span.start)
-                after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
-                if src.kind(after) == "LPAR":
-                    parens.add(after)
-        return parens, sorted(found)
+        return sorted(found)
+
+    def _wrapped(self, expr: ast.Expr) -> bool:
+        """Whether the writer put ``expr`` in parentheses of its own: a `(` just before it,
+        not a call's, whose `)` comes just after it."""
+        span = expr.span
+        src = self.src
+        i = src.index_at(span.start) - 1
+        if i < 0 or src.types[i] != "LPAR" or i in self.call_parens:
+            return False
+        close = src.match.get(i)
+        return close is not None and close > i + 1 and src.tokens[close - 1].end_pos == span.end
 
     # ------------------------------------------------------------ sequences and blocks
     def module(self) -> Doc:
@@ -749,6 +771,7 @@ class _Printer:
         return text
 
     def _line_args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> str:
+        self.call_parens.add(open_index)
         items = [
             self._line_expr(a.value) if a.name is None else f"{a.name}: " + self._line_expr(a.value)
             for a in args
@@ -776,7 +799,7 @@ class _Printer:
             strength = _strength(expr)
             text = self._line_bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
+        if bracket or self._wrapped(expr):
             return "(" + text + ")"
         return text
 
@@ -903,6 +926,7 @@ class _Printer:
         return [] if over is None else [Text(" over "), self._expr(over)]
 
     def _args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> Doc:
+        self.call_parens.add(open_index)
         items = [_Item(a.span.start, a.span.end, self._arg(a)) for a in args]
         return self._delimited(open_index, close_index, items)
 
@@ -918,7 +942,7 @@ class _Printer:
         strength = _strength(expr)
         doc = self._bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
+        if bracket or self._wrapped(expr):
             return [Text("("), doc, Text(")")]
         return doc
 

@@ -69,6 +69,10 @@ class SourceTokens:
             raise KeyError(offset)
         return i
 
+    def index_at(self, offset: int) -> int:
+        """The index of the token that starts at ``offset``, or -1."""
+        return self._by_start[offset] if 0 <= offset < len(self._by_start) else -1
+
     def ending_at(self, offset: int) -> int:
         """The index of the token that ends at ``offset`` (KeyError: none does)."""
         # mostly a `)` or `}`: the token that starts one character before
@@ -93,18 +97,6 @@ class SourceTokens:
 
     def at(self, index: int) -> Token:
         return self.tokens[index]
-
-    def parenthesized(self, structural: set[int]) -> dict[int, int]:
-        """Where the code written inside parentheses of its own (not a call's, not those in
-        ``structural``) starts -> where it ends: an expression whose span starts and ends so
-        was wrapped. (One such code per start: the `(` just before it tells which.)"""
-        found = {}
-        tokens, match = self.tokens, self.match
-        for i in [i for i, t in enumerate(self.types) if t == "LPAR"]:
-            close = match.get(i)
-            if close is not None and close > i + 1 and i not in structural:
-                found[tokens[i + 1].start_pos] = tokens[close - 1].end_pos
-        return found
 
     def text_at(self, offset: int) -> str:
         """The text of the token that starts at ``offset``."""

@@ -179,7 +179,8 @@ class _Printer:
         }
         self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
         self.fast = FAST_PATHS
-        self._flat_memo: dict[str, dict[str, str | None]] = {"_line_stmt": {}, "_line_site": {}}
+        # per flat-text maker (_line_stmt, _line_site): source text -> flat text (None: none)
+        self._flat_memo: dict[Callable[[Any], str], dict[str, str | None]] = {}
 
     def _survey(self) -> list[int]:
         """One walk over the statements, declarations, scene members and parameters (not
@@ -700,7 +701,9 @@ class _Printer:
         # the flat text is a function of the node's source text alone (its tokens, hence its
         # tree, parentheses and trailing commas, are all inside it): a line written twice in
         # the file is made once
-        memo = self._flat_memo[line.__name__]
+        memo = self._flat_memo.get(line)
+        if memo is None:
+            memo = self._flat_memo[line] = {}
         source = self.text[span.start : span.end]
         text = memo.get(source, _UNSEEN)
         if text is _UNSEEN:

@@ -227,13 +227,17 @@ def _definitions(draw: st.DrawFn) -> str:
 @given(_definitions())
 def test_block_text_and_repeated_lines_on_random_programs(text: str) -> None:
     """Blocks made one text, lines made once per source text, flat parameter lists: the same
-    output and diagnostics as the general code and the layout (the property)."""
+    output and diagnostics as the general code and the layout (the property), on the text and
+    on its formatted form (already canonical: the case the paths are for)."""
     _assert_same_both_ways(text)
+    formatted = format_source(text, "x.mtask").text
+    if formatted is not None:
+        _assert_same_both_ways(formatted)
 
 
 def test_block_text_paths_are_taken_and_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     """The comparison sees a block text that put a held comment after the block instead of
-    after its `{` line, and a parameter list kept flat one column too far."""
+    after its `{` line, and a parameter list kept flat past the width."""
     hosted = "task t {\n    repeat 2 {  # c\n        a()\n    }\n    b()\n}\n"
     _assert_same_both_ways(hosted)
 

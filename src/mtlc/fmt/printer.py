@@ -224,6 +224,14 @@ class _Printer:
         """Whether the writer put ``expr`` in parentheses of its own: a `(` just before it,
         not a call's, whose `)` comes just after it."""
         span = expr.span
+        # what the text has before it: a `(` token ends in `(` (or a look-alike, not ASCII),
+        # and only spaces, or a new line (and comments), come between; anything else, and no
+        # token need be looked up
+        text, k = self.text, span.start - 1
+        while k >= 0 and text[k] in " \t\f\v":
+            k -= 1
+        if k < 0 or (text[k] not in "(\r\n" and text[k].isascii()):
+            return False
         src = self.src
         i = src.index_at(span.start) - 1
         if i < 0 or src.types[i] != "LPAR" or i in self.call_parens:

@@ -161,6 +161,139 @@ def test_one_line_path_on_mutated_files(index: int) -> None:
         _assert_same_both_ways(data.decode("utf-8", "replace"))
 
 
+# ------------------------------------------------ blocks as one text, repeated lines, parameters
+
+# statements drawn from a few, so that the same line comes back at other depths (the flat
+# text is made once per source text: _one_line's memo), some with the writer's parentheses
+_LINES = [
+    "reach(hand, bolt)",
+    "inspect(bolt, (1 min + 30 s))",
+    "inspect(bolt, ((2 s)))",
+    "f((1).x, g((a)), -(b))",
+    "goal hand at (0, 1, 2) cm approach 3 cm over 1 s",
+    "posture stand()",
+    "turn(hand, -90 deg, 0.2 kg)",
+]
+_COMMENTS = ["", "  # c", "  # mtlc: ignore[MT0501]", "  # mtlc: ignore[MT0501] a longer reason"]
+
+
+@st.composite
+def _blocks(draw: st.DrawFn, depth: int = 1) -> str:
+    """A block's lines: statements (some joined by `;`, some with a trailing comment, one
+    padded towards the width), nested `repeat` and `parallel` blocks, blank lines."""
+    out = []
+    for _ in range(draw(st.integers(1, 4))):
+        choice = draw(st.integers(0, 5))
+        comment = draw(st.sampled_from(_COMMENTS))
+        if choice == 0 and depth < 4:
+            head = draw(st.sampled_from(["repeat 2 {", "parallel {", "for v in [1, 2] {"]))
+            inner = draw(_blocks(depth + 1))
+            tail = draw(st.sampled_from(["}", "}; reach(hand, bolt)"]))
+            out.append(f"{head}{comment}\n{inner}\n{tail}")
+        elif choice == 1:
+            pad = "x" * draw(st.integers(60, 100 - 4 * depth))
+            out.append(f"inspect({pad}, 1 s){comment}")
+        elif choice == 2:
+            out.append(
+                draw(st.sampled_from(_LINES)) + "; " + draw(st.sampled_from(_LINES)) + comment
+            )
+        else:
+            out.append(draw(st.sampled_from(_LINES)) + comment)
+        if draw(st.booleans()):
+            out.append("")
+    return "\n".join(out)
+
+
+@st.composite
+def _definitions(draw: st.DrawFn) -> str:
+    """An action whose parameter list ends around column 100, and a task of blocks."""
+    names = draw(st.lists(st.sampled_from(["hand", "bolt", "a_long_parameter_name"]), max_size=5))
+    params = ", ".join(f"{n}{k}: Site" for k, n in enumerate(names))
+    extra = draw(st.sampled_from(["", ", turns: Int = 2", ", at: Vector = (0, 0, 1) cm", ","]))
+    pad = "y" * draw(st.integers(1, 40))
+    body = draw(_blocks())
+    comment = draw(st.sampled_from(["", "  # c"]))
+    return (
+        f"action a{pad}({params}{extra}) {{{comment}\n{body}\n}}\n\n"
+        f"task t {{\n{draw(_blocks())}\n}}\n"
+    )
+
+
+@settings(
+    max_examples=200,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+@given(_definitions())
+def test_block_text_and_repeated_lines_on_random_programs(text: str) -> None:
+    """Blocks made one text, lines made once per source text, flat parameter lists: the same
+    output and diagnostics as the general code and the layout (the property), on the text and
+    on its formatted form (already canonical: the case the paths are for)."""
+    _assert_same_both_ways(text)
+    formatted = format_source(text, "x.mtask").text
+    if formatted is not None:
+        _assert_same_both_ways(formatted)
+
+
+def test_block_text_paths_are_taken_and_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The comparison sees a block text that put a held comment after the block instead of
+    after its `{` line, and a parameter list kept flat past the width."""
+    hosted = "task t {\n    repeat 2 {  # c\n        a()\n    }\n    b()\n}\n"
+    _assert_same_both_ways(hosted)
+
+    def at_end(element):  # type: ignore[no-untyped-def]
+        first, second = element
+        if type(first) is printer.LineSuffix and type(second) is str:
+            return second + first.text
+        return original_suffix(element)
+
+    original_suffix = printer._with_suffix
+    monkeypatch.setattr(printer, "_with_suffix", at_end)
+    with _fast_paths(False):
+        reference = _result(format_source(hosted, "x.mtask"))
+    with _fast_paths(True):
+        fast = _result(format_source(hosted, "x.mtask"))
+    assert reference[0] == hosted and fast != reference
+    monkeypatch.undo()
+
+    long = "action a(" + ", ".join(f"p{k}: Site" for k in range(12)) + ") {\n    b()\n}\n"
+    assert long.index(" {") > 100  # the list breaks
+    _assert_same_both_ways(long)
+    original_params = printer._Printer._flat_params
+
+    def wider(self, definition, open_index, close_index):  # type: ignore[no-untyped-def]
+        monkeypatch.setattr(printer, "LINE_LENGTH", 200)  # for the flat test only
+        try:
+            return original_params(self, definition, open_index, close_index)
+        finally:
+            monkeypatch.setattr(printer, "LINE_LENGTH", 100)
+
+    monkeypatch.setattr(printer._Printer, "_flat_params", wider)
+    with _fast_paths(False):
+        reference = _result(format_source(long, "x.mtask"))
+    with _fast_paths(True):
+        fast = _result(format_source(long, "x.mtask"))
+    assert fast != reference
+
+
+def test_a_repeated_line_is_made_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same statement text, written at several depths (one past the width), is flattened
+    once, and kept flat only where it fits."""
+    line = "inspect(bolt, " + "x" * 76 + ", 1 s)"  # 96 characters
+    text = f"task t {{\n    {line}\n    repeat 2 {{\n        {line}\n    }}\n    {line}\n}}\n"
+    _assert_same_both_ways(text)
+    made: list[str] = []
+    original = printer._Printer._line_stmt
+
+    def counted(self, stmt):  # type: ignore[no-untyped-def]
+        made.append(original(self, stmt))
+        return made[-1]
+
+    monkeypatch.setattr(printer._Printer, "_line_stmt", counted)
+    out = format_source(text, "x.mtask").text
+    assert made == [line] and out is not None and f"        {line}" not in out
+
+
 # ---------------------------------------------------------------- the tokenizer
 
 

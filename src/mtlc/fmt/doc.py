@@ -133,6 +133,9 @@ def _fits(parts: Doc, rest: list[_Command], width: int, broken: set[int]) -> boo
         mode, doc = todo.pop()
         kind = type(doc)
         if kind is str:
+            cut = doc.find("\n")  # type: ignore[union-attr]
+            if cut >= 0:  # a text of several lines (a block printed as one): its first line
+                return width - cut >= 0
             width -= len(doc)  # type: ignore[arg-type]
         elif kind is list:
             todo.extend([(mode, part) for part in reversed(doc)])  # type: ignore[arg-type]
@@ -186,6 +189,14 @@ def _flat_pieces(doc: Doc, pieces: list[str], held: list[str]) -> tuple[int, int
     return first_text, used
 
 
+def _spaces(text: str, start: int) -> int:
+    """How many spaces ``text`` has from ``start`` on (the indentation of the line there)."""
+    end = start
+    while end < len(text) and text[end] == " ":
+        end += 1
+    return end - start
+
+
 def render(doc: Doc, width: int) -> str:
     """Lay ``doc`` out in lines of at most ``width`` characters where the groups allow it."""
     broken: set[int] = set()
@@ -219,8 +230,23 @@ def render(doc: Doc, width: int) -> str:
             if pending_indent is not None and doc:
                 out.append(" " * pending_indent)
                 pending_indent = None
-            out.append(doc)  # type: ignore[arg-type]
-            column += len(doc)  # type: ignore[arg-type]
+            if "\n" not in doc:
+                out.append(doc)  # type: ignore[arg-type]
+                column += len(doc)  # type: ignore[arg-type]
+                continue
+            # a text of several lines, with their indentation (a block printed as one text):
+            # a comment held to the end of the line goes before its first new line, as at a
+            # line break, and the column and indentation are those of its last line
+            cut = doc.index("\n")  # type: ignore[union-attr]
+            if suffixes:
+                out.append(doc[:cut])  # type: ignore[index]
+                flush_suffixes(_spaces(doc, cut + 1))  # type: ignore[arg-type]
+                out.append(doc[cut:])  # type: ignore[index]
+            else:
+                out.append(doc)  # type: ignore[arg-type]
+            last = doc.rindex("\n") + 1  # type: ignore[union-attr]
+            column = len(doc) - last  # type: ignore[arg-type]
+            line_indent = _spaces(doc, last)  # type: ignore[arg-type]
         elif kind is list:
             stack.extend([(indent, mode, part) for part in reversed(doc)])  # type: ignore[arg-type]
         elif kind is Line:

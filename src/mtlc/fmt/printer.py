@@ -46,7 +46,6 @@ TRAILING_COMMENT_GAP = "  "
 # printed flat at once, _one_line; a block or entry with no comment to place, _block and
 # _sequence; a run of plain lines as one text, _braces); tests/test_fmt_paths.py compares both
 FAST_PATHS = True
-_CALLS = frozenset({ast.Call, ast.CallExpr})
 
 
 def _subclasses(cls: type) -> set[type]:
@@ -60,13 +59,13 @@ def _subclasses(cls: type) -> set[type]:
 _ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCHORS))
 
 # what _survey does with a node of each class (no entry: nothing)
-_ANCHOR, _CALL, _BLOCK, _SCENE, _POSTURE = "anchor", "call", "block", "scene", "posture"
+_ANCHOR, _BLOCK, _SCENE = "anchor", "block", "scene"
 _SURVEY_ROLES: dict[type, str] = {kind: _ANCHOR for kind in _ANCHOR_TYPES}
 _SURVEY_ROLES.update(
-    {ast.Call: _CALL, ast.CallExpr: _CALL, ast.Block: _BLOCK, ast.Scene: _SCENE,
-     ast.Posture: _POSTURE}
+    {kind: _BLOCK for kind in _subclasses(ast.Block)}
+    | {kind: _SCENE for kind in _subclasses(ast.Scene)}
 )  # fmt: skip
-assert not issubclass(ast.CallExpr, ANCHORS) and not issubclass(ast.Block, ANCHORS)
+assert not issubclass(ast.Block, ANCHORS)
 assert all(issubclass(k, ANCHORS) for k in (ast.Call, ast.Scene, ast.Posture))
 
 # binding strength: a child that binds less tightly than its place needs parentheses
@@ -119,6 +118,25 @@ def _node_fields(kind: type) -> tuple[str, ...]:
     return names
 
 
+_SURVEY_FIELDS: dict[type, tuple[str, ...]] = {}  # _node_fields without expressions
+# field types that hold only expressions (and arguments): where no line-level thing can be
+_EXPR_TYPES = frozenset({"Expr", "Expr | None", "tuple[Expr, ...]", "tuple[Arg, ...]"})
+
+
+def _survey_fields(kind: type) -> tuple[str, ...]:
+    """The fields of a node class that may hold statements, declarations, scene members or
+    parameters (none for an expression)."""
+    names = _SURVEY_FIELDS.get(kind)
+    if names is None:
+        types = {f.name: f.type for f in dataclasses.fields(kind)}
+        names = _SURVEY_FIELDS[kind] = tuple(
+            name
+            for name in _node_fields(kind)
+            if not issubclass(kind, ast.Expr) and types[name] not in _EXPR_TYPES
+        )
+    return names
+
+
 def nodes(node: object) -> Iterator[ast.Node]:
     """Every AST node under ``node``, itself included, parents before children in field order.
 
@@ -147,8 +165,11 @@ class _Printer:
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
         self.blocks_by_end: dict[int, ast.Block] = {}
-        self.call_parens, self.anchor_starts = self._survey()
-        self.parenthesized = self.src.parenthesized(self.call_parens)
+        self.anchor_starts = self._survey()
+        # the `(` of the calls and postures printed so far (filled by _args and _line_args,
+        # which print a call's arguments after its `(` is here): not parentheses the writer
+        # put around an argument (_wrapped)
+        self.call_parens: set[int] = set()
         # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
         reach: dict[int, int] = {}
         for mark in suppressions.scan(file, text):
@@ -158,41 +179,38 @@ class _Printer:
         }
         self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
         self.fast = FAST_PATHS
+        # per flat-text maker (_line_stmt, _line_site): source text -> flat text (None: none)
+        self._flat_memo: dict[Callable[[Any], str], dict[str, str | None]] = {}
 
-    def _survey(self) -> tuple[set[int], list[int]]:
-        """One walk over the nodes (there are hundreds of thousands in a large file) for:
+    def _survey(self) -> list[int]:
+        """One walk over the statements, declarations, scene members and parameters (not
+        into expressions: no line-level thing is inside one) for:
 
-        - the `(` of calls and postures: not parentheses the writer put around an argument;
         - where line-level things start (statements, declarations, scene members,
           parameters): what a comment on their line is about, and where lint reports findings;
         - the blocks, by where they end (``blocks_by_end``).
         """
-        parens: set[int] = set()
         found: list[int] = []
         src = self.src
-        fields, roles = _FIELDS, _SURVEY_ROLES
-        stack: list[ast.Node] = [self.tree]  # every node, in no particular order
+        fields, roles = _SURVEY_FIELDS, _SURVEY_ROLES
+        stack: list[ast.Node] = [self.tree]  # every such node, in no particular order
         while stack:
             node = stack.pop()
             kind = type(node)
             names = fields.get(kind)
             if names is None:
-                names = _node_fields(kind)
+                names = _survey_fields(kind)
             for name in names:
                 value = getattr(node, name)
                 if type(value) is tuple:
                     stack.extend(value)
                 elif value is not None:
                     stack.append(value)
-            role = roles.get(kind)  # one look-up: most nodes (names, numbers, arguments) have none
+            role = roles.get(kind)
             if role is None:
                 continue
             if role is _ANCHOR:
                 found.append(node.span.start)
-            elif role is _CALL:
-                parens.add(src.match[src.ending_at(node.span.end)])
-                if kind is ast.Call:
-                    found.append(node.span.start)
             elif role is _BLOCK:
                 self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
             elif role is _SCENE:
@@ -200,12 +218,26 @@ class _Printer:
                     keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
                     found.append(int(src.at(keyword).start_pos))
                 found.append(node.span.start)
-            elif role is _POSTURE:
-                found.append(node.span.start)
-                after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
-                if src.kind(after) == "LPAR":
-                    parens.add(after)
-        return parens, sorted(found)
+        return sorted(found)
+
+    def _wrapped(self, expr: ast.Expr) -> bool:
+        """Whether the writer put ``expr`` in parentheses of its own: a `(` just before it,
+        not a call's, whose `)` comes just after it."""
+        span = expr.span
+        # what the text has before it: a `(` token ends in `(` (or a look-alike, not ASCII),
+        # and only spaces, or a new line (and comments), come between; anything else, and no
+        # token need be looked up
+        text, k = self.text, span.start - 1
+        while k >= 0 and text[k] in " \t\f\v":
+            k -= 1
+        if k < 0 or (text[k] not in "(\r\n" and text[k].isascii()):
+            return False
+        src = self.src
+        i = src.index_at(span.start) - 1
+        if i < 0 or src.types[i] != "LPAR" or i in self.call_parens:
+            return False
+        close = src.match.get(i)
+        return close is not None and close > i + 1 and src.tokens[close - 1].end_pos == span.end
 
     # ------------------------------------------------------------ sequences and blocks
     def module(self) -> Doc:
@@ -390,6 +422,10 @@ class _Printer:
 
     def _braces(self, opener: list[Comment], elements: list[tuple[bool, Doc]]) -> Doc:
         """`{` with the comments after it, the elements one per line, `}`."""
+        if self.fast and not opener:
+            plain = self._plain_braces(elements)
+            if plain is not None:
+                return plain
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
@@ -414,6 +450,31 @@ class _Printer:
         if run:
             body.append("".join(run))
         return [*head, Nest(body), HARDLINE, Text("}")]
+
+    def _plain_braces(self, elements: list[tuple[bool, Doc]]) -> str | None:
+        """The block as the one text the layout would print for it, new lines and indentation
+        included, when every element is a text, at most with one trailing comment (None
+        otherwise). No group is inside, so nothing is left to lay out; a comment held to the
+        end of a line is written before the next new line, where the layout would print it."""
+        inner = "\n" + " " * (INDENT * (self.depth + 1))
+        parts = ["{"]
+        for blank, element in elements:
+            text = element if type(element) is str else _with_suffix(element)
+            if not text:
+                return None
+            parts.append("\n" + inner + text if blank else inner + text)  # type: ignore[operator]
+        if len(parts) == 1:
+            parts.append("}")
+        else:
+            parts.append("\n" + " " * (INDENT * self.depth) + "}")
+        return "".join(parts)
+
+    def _joined(self, parts: list[Doc]) -> Doc:
+        """``parts`` as one text when they are all texts (a block among them, see
+        _plain_braces): so the block holding them can be one text too."""
+        if self.fast and all(type(p) is str for p in parts):
+            return "".join(parts)  # type: ignore[arg-type]
+        return parts
 
     def _block(self, block: ast.Block) -> Doc:
         open_index = self.src.starting_at(block.span.start)
@@ -502,21 +563,25 @@ class _Printer:
             case ast.Use():
                 return Text("use " + ".".join(node.module))
             case ast.Scene():
-                return [Text(f"scene {node.name} "), self._scene_body(node)]
+                return self._joined([Text(f"scene {node.name} "), self._scene_body(node)])
             case ast.ToolDecl():
                 entries = [
                     self._entry(p.span, self._bind(self._tool_property, p)) for p in node.properties
                 ]
-                return [Text(f"tool {node.name} "), self._braced_after(node, entries)]
+                return self._joined([Text(f"tool {node.name} "), self._braced_after(node, entries)])
             case ast.Definition():
-                return [
-                    Text(f"{node.kind} {node.name}"),
-                    self._params(node),
-                    Text(" "),
-                    self._block(node.body),
-                ]
+                return self._joined(
+                    [
+                        Text(f"{node.kind} {node.name}"),
+                        self._params(node),
+                        Text(" "),
+                        self._block(node.body),
+                    ]
+                )
             case ast.Task():
-                return [Text(f"task {node.name}{self._title(node)} "), self._block(node.body)]
+                return self._joined(
+                    [Text(f"task {node.name}{self._title(node)} "), self._block(node.body)]
+                )
         raise TypeError(f"cannot format a top-level {type(node).__name__}")
 
     def _braced_after(self, decl: ast.Decl, entries: list[_Entry]) -> Doc:
@@ -588,8 +653,36 @@ class _Printer:
     def _params(self, definition: ast.Definition) -> Doc:
         open_index = self.src.starting_at(definition.name_span.start) + 1
         close_index = self.src.starting_at(definition.body.span.start) - 1
+        flat = self._flat_params(definition, open_index, close_index)
+        if flat is not None:
+            return flat
         items = [_Item(p.span.start, p.span.end, self._param(p)) for p in definition.params]
         return self._delimited(open_index, close_index, items)
+
+    def _flat_params(
+        self, definition: ast.Definition, open_index: int, close_index: int
+    ) -> str | None:
+        """The parameter list as the text the layout prints when its group is flat: when no
+        comment is in it, no magic trailing comma, and the line up to the body's `{` (and a
+        `}` or comment after it: three characters at most) fits. A definition starts a line at
+        the top level, so the group starts at the column of the header's length."""
+        if not self.fast:
+            return None
+        opener, closer = self.src.at(open_index), self.src.at(close_index)
+        if self.pool.any_in(opener.start_pos, closer.end_pos):
+            return None
+        items: list[str] = []
+        try:
+            for p in definition.params:
+                item = f"{p.name}: {p.type_name}"
+                if p.default is not None:
+                    item += " = " + self._line_expr(p.default)
+                items.append(item)
+            text = self._line_list(open_index, close_index, items)
+        except _NotOneLine:
+            return None
+        head = len(definition.kind) + 1 + len(definition.name)
+        return text if self.depth == 0 and head + len(text) + 3 <= LINE_LENGTH else None
 
     def _param(self, param: ast.Param) -> Doc:
         doc: list[Doc] = [Text(f"{param.name}: {param.type_name}")]
@@ -610,11 +703,24 @@ class _Printer:
         so the layout's output would be this very text. Otherwise (None) the document is
         built. ``tests/test_fmt.py`` checks both paths give the same output.
         """
-        if not self.fast or self.pool.any_in(node.span.start, node.span.end):
+        span = node.span
+        if not self.fast or self.pool.any_in(span.start, span.end):
             return None
-        try:
-            text = line(node)
-        except _NotOneLine:
+        # the flat text is a function of the node's source text alone (its tokens, hence its
+        # tree, parentheses and trailing commas, are all inside it): a line written twice in
+        # the file is made once
+        memo = self._flat_memo.get(line)
+        if memo is None:
+            memo = self._flat_memo[line] = {}
+        source = self.text[span.start : span.end]
+        text = memo.get(source, _UNSEEN)
+        if text is _UNSEEN:
+            try:
+                text = line(node)
+            except _NotOneLine:
+                text = None
+            memo[source] = text
+        if text is None:
             return None
         return text if INDENT * self.depth + len(text) <= LINE_LENGTH else None
 
@@ -676,6 +782,7 @@ class _Printer:
         return text
 
     def _line_args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> str:
+        self.call_parens.add(open_index)
         items = [
             self._line_expr(a.value) if a.name is None else f"{a.name}: " + self._line_expr(a.value)
             for a in args
@@ -703,7 +810,7 @@ class _Printer:
             strength = _strength(expr)
             text = self._line_bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
+        if bracket or self._wrapped(expr):
             return "(" + text + ")"
         return text
 
@@ -764,16 +871,20 @@ class _Printer:
                     self._args(self.src.match[rpar], rpar, stmt.args),
                 ]
             case ast.Repeat():
-                return [Text("repeat "), self._expr(stmt.count), Text(" "), self._block(stmt.body)]
+                return self._joined(
+                    [Text("repeat "), self._expr(stmt.count), Text(" "), self._block(stmt.body)]
+                )
             case ast.ForEach():
-                return [
-                    Text(f"for {stmt.var} in "),
-                    self._expr(stmt.items),
-                    Text(" "),
-                    self._block(stmt.body),
-                ]
+                return self._joined(
+                    [
+                        Text(f"for {stmt.var} in "),
+                        self._expr(stmt.items),
+                        Text(" "),
+                        self._block(stmt.body),
+                    ]
+                )
             case ast.Parallel():
-                return [Text("parallel "), self._block(stmt.body)]
+                return self._joined([Text("parallel "), self._block(stmt.body)])
             case ast.ManikinSetting():
                 return Text(f"manikin {stmt.population} {stmt.sex} {stmt.percentile}")
             case ast.SceneSetting():
@@ -826,6 +937,7 @@ class _Printer:
         return [] if over is None else [Text(" over "), self._expr(over)]
 
     def _args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> Doc:
+        self.call_parens.add(open_index)
         items = [_Item(a.span.start, a.span.end, self._arg(a)) for a in args]
         return self._delimited(open_index, close_index, items)
 
@@ -841,7 +953,7 @@ class _Printer:
         strength = _strength(expr)
         doc = self._bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
+        if bracket or self._wrapped(expr):
             return [Text("("), doc, Text(")")]
         return doc
 
@@ -890,6 +1002,28 @@ class _Printer:
         items = [_Item(x.span.start, x.span.end, self._expr(x)) for x in vector.items]
         doc = self._delimited(open_index, self.src.match[open_index], items)
         return doc if vector.unit is None else [doc, Text(f" {vector.unit}")]
+
+
+_UNSEEN: Any = object()
+
+
+def _with_suffix(element: Doc) -> str | None:
+    """An element that is a text and one comment held to the end of a line, before or after
+    it (a hosted comment, or one placed after the element's last line), as the one text the
+    layout prints: the comment goes before the text's first new line (None: another shape)."""
+    if type(element) is not list or len(element) != 2:
+        return None
+    first, second = element
+    if type(first) is LineSuffix and type(second) is str:
+        comment, text = first.text, second
+    elif type(first) is str and type(second) is LineSuffix:
+        return first + second.text if first else None
+    else:
+        return None
+    if not text:
+        return None
+    cut = text.find("\n")
+    return text + comment if cut < 0 else text[:cut] + comment + text[cut:]
 
 
 class _NotOneLine(Exception):

@@ -4,9 +4,7 @@ spellings, parentheses, trailing commas) and the comments, each handed out once.
 from __future__ import annotations
 
 import bisect
-from collections import deque
 from dataclasses import dataclass
-from itertools import count
 
 from lark import Token
 
@@ -14,7 +12,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.syntax.lexer import comments, tokenize
 
 _PAIRS = {"LPAR": "RPAR", "LSQB": "RSQB", "LBRACE": "RBRACE"}
-_BRACKETS = frozenset({*_PAIRS, *_PAIRS.values()})
+_OPENERS = {"RPAR": "LPAR", "RSQB": "LSQB"}
 
 # the text being formatted and its tokens and comments: `format_source` lexes the file once and
 # the printer's SourceTokens and CommentPool take them from here instead of scanning it again
@@ -54,29 +52,30 @@ class SourceTokens:
     def __init__(self, text: str, file: str) -> None:
         self.tokens: list[Token] = _known(text, file)[0]
         self.types: list[str] = [t.type for t in self.tokens]
-        # a token by the offset where it starts: a list as long as the text (-1: no token
-        # there), filled by C loops (map, deque); a dict of hundreds of thousands of offsets
-        # cost more to build, and a bisection more to look up
+        # a token by the offset where it starts: found by bisection (the printer looks up a few
+        # tens of thousands in a large file; a list as long as the text, -1 where no token
+        # starts, cost more to fill than they cost)
         self._starts = [t.start_pos for t in self.tokens]
-        self._by_start = [-1] * (len(text) + 1)
-        deque(map(self._by_start.__setitem__, self._starts, count()), 0)
-        self.match = _match_brackets(self.types)
+        self.match = _Partners(self.types)
 
     def starting_at(self, offset: int) -> int:
         """The index of the token that starts at ``offset`` (KeyError: none does)."""
-        i = self._by_start[offset] if 0 <= offset < len(self._by_start) else -1
+        i = self.index_at(offset)
         if i < 0:
             raise KeyError(offset)
         return i
 
+    def index_at(self, offset: int) -> int:
+        """The index of the token that starts at ``offset``, or -1."""
+        starts = self._starts
+        i = bisect.bisect_left(starts, offset)
+        return i if i < len(starts) and starts[i] == offset else -1
+
     def ending_at(self, offset: int) -> int:
         """The index of the token that ends at ``offset`` (KeyError: none does)."""
-        # mostly a `)` or `}`: the token that starts one character before
-        i = self._by_start[offset - 1] if 0 < offset <= len(self._by_start) else -1
+        i = bisect.bisect_left(self._starts, offset) - 1  # the last token starting before
         if i < 0 or self.tokens[i].end_pos != offset:
-            i = bisect.bisect_left(self._starts, offset) - 1  # the last token starting before
-            if i < 0 or self.tokens[i].end_pos != offset:
-                raise KeyError(offset)
+            raise KeyError(offset)
         return i
 
     def line_of(self, end: int) -> int:
@@ -94,18 +93,6 @@ class SourceTokens:
     def at(self, index: int) -> Token:
         return self.tokens[index]
 
-    def parenthesized(self, structural: set[int]) -> dict[int, int]:
-        """Where the code written inside parentheses of its own (not a call's, not those in
-        ``structural``) starts -> where it ends: an expression whose span starts and ends so
-        was wrapped. (One such code per start: the `(` just before it tells which.)"""
-        found = {}
-        tokens, match = self.tokens, self.match
-        for i in [i for i, t in enumerate(self.types) if t == "LPAR"]:
-            close = match.get(i)
-            if close is not None and close > i + 1 and i not in structural:
-                found[tokens[i + 1].start_pos] = tokens[close - 1].end_pos
-        return found
-
     def text_at(self, offset: int) -> str:
         """The text of the token that starts at ``offset``."""
         return str(self.tokens[self.starting_at(offset)].value)
@@ -115,18 +102,48 @@ class SourceTokens:
         return self.kind(closer - 1) == "COMMA"
 
 
-def _match_brackets(types: list[str]) -> dict[int, int]:
-    match: dict[int, int] = {}
-    open_: list[int] = []
-    # only the brackets are visited (found by C-speed comparisons), not every token
-    for i in [i for i, t in enumerate(types) if t in _BRACKETS]:
-        kind = types[i]
-        if kind in _PAIRS:
-            open_.append(i)
-        elif open_ and _PAIRS[types[open_[-1]]] == kind:
-            j = open_.pop()
-            match[j], match[i] = i, j
-    return match
+class _Partners(dict[int, int]):
+    """The index of the bracket that matches the ``(`` ``)`` ``[`` or ``]`` at an index, found
+    when first asked for (the printer asks for a few of them: the calls, lists and vectors it
+    builds, and the parentheses before an expression), by a scan to it that counts that kind
+    of bracket only. Right for the text of a parse without errors, where the grammar nested
+    every bracket in its pair (pairing them all up front, by a walk with a stack over every
+    bracket of the file, cost more than the look-ups)."""
+
+    def __init__(self, types: list[str]) -> None:
+        super().__init__()
+        self.types = types
+
+    def __missing__(self, index: int) -> int:
+        types = self.types
+        if not 0 <= index < len(types):
+            raise KeyError(index)
+        kind = types[index]
+        closer = _PAIRS.get(kind)
+        if closer is not None:  # scan forward to the closer at depth 0
+            depth, step, other = 0, 1, closer
+        else:
+            opener = _OPENERS[kind]  # KeyError: not a bracket that pairs
+            depth, step, other = 0, -1, opener
+        i = index + step
+        while 0 <= i < len(types):
+            found = types[i]
+            if found == kind:
+                depth += 1
+            elif found == other:
+                if depth == 0:
+                    self[index] = i
+                    self[i] = index
+                    return i
+                depth -= 1
+            i += step
+        raise KeyError(index)
+
+    def get(self, index: int, default: int | None = None) -> int | None:  # type: ignore[override]
+        try:
+            return self[index]
+        except (KeyError, IndexError):
+            return default
 
 
 class CommentPool:

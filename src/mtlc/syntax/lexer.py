@@ -277,7 +277,17 @@ def tokenize(
                 if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
                     if not brackets:
                         item_ends.append(len(tokens))
-                    tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                    # Token(NEWLINE, "\n", ...) made as below: a new line per line of code
+                    tok = _new_str(Token, "\n")
+                    tok.type = NEWLINE
+                    tok.start_pos = start
+                    tok.value = "\n"
+                    tok.line = line
+                    tok.column = col
+                    tok.end_line = line
+                    tok.end_column = col + 1
+                    tok.end_pos = end
+                    tokens.append(tok)
                     last_type = NEWLINE
                 line += 1
                 line_start = end

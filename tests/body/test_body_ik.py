@@ -316,6 +316,32 @@ def test_stacked_matrix_kernel_is_the_joint_by_joint_one_to_the_bit(
                     assert np.array_equal(np.signbit(g), np.signbit(w))
 
 
+@pytest.mark.parametrize(
+    ("sites", "reach"), [(("gaze",), "arm"), (("r_hand", "l_hand", "r_foot", "l_foot"), "torso")]
+)
+def test_models_of_one_problem_share_the_stacked_plan_and_keep_their_own_angles(
+    sites: tuple[str, ...], reach: str
+) -> None:
+    """The stacked plan is built once per problem (sites and dofs) and shared by every model
+    of it; each model still evaluates with its own base angles and frozen frames: the same
+    bits as the joint-by-joint reference, for one-row and per-row bases, first built or not."""
+    rng = np.random.default_rng(11)
+    first = prepare(SK, list(sites), SK.random_q(rng, 1), reach=reach)
+    first._structure.stacked.clear()  # this test's first model builds the plan
+    models = [first] + [prepare(SK, list(sites), SK.random_q(rng, b), reach=reach) for b in (1, 3)]
+    plans = [m._stacked() for m in models]
+    assert len(first._structure.stacked) == 1
+    assert all(p.steps is plans[0].steps and p.paths is plans[0].paths for p in plans)
+    assert not np.array_equal(plans[0].q_steps, plans[1].q_steps)  # each model's own angles
+    for model in models:
+        b = model.B
+        for _ in range(5):
+            qa = SK.random_q(rng, b)[:, model.active]
+            got = model.evaluate_matrices(qa)
+            for g, w in zip(got, _joint_by_joint(model, qa, None), strict=True):
+                assert np.array_equal(g, w)
+
+
 @pytest.mark.parametrize("far", [0.0, 0.6])
 @pytest.mark.parametrize("kind", ["two", "orientation", "aim"])
 @pytest.mark.parametrize("reach", ["arm", "torso"])

@@ -343,3 +343,39 @@ def test_the_head_never_turns_faster_than_a_person(tmp_path: Path, manikin: str)
     assert np.degrees(steps.max()) <= 12.0
     looks = [s for s in ir.segments if s.kind == "gaze" and not s.goal.params.get("implicit")]
     assert len(looks) >= 4 and all(s.end - s.start >= TURN_MIN - 1e-9 for s in looks)
+
+
+def test_head_solves_asked_again_are_the_solver_s_own_answer(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``HeadSolves`` returns what ``solve_rows(..., restarts=0)`` returns, to the bit, for new
+    rows and rows asked again; an arm's angle is not part of the question (the row keeps its
+    own), a trunk angle, the head's start, the root and the target are (each asks anew)."""
+    from mtlc.body import build_manikin
+    from mtlc.passes import gaze
+
+    skel = build_manikin()
+    calls: list[int] = []
+    real = gaze.solve_rows
+    monkeypatch.setattr(gaze, "solve_rows", lambda *a, **kw: calls.append(1) or real(*a, **kw))
+    q = np.tile(skel.q_comfort, (8, 1))
+    q[1, skel.dof_index("r_shoulder_flex")] += 0.3  # an arm: not the head's question
+    q[3, skel.dof_index("thorax_rot")] += 0.2  # the trunk under the neck
+    q[4, skel.dof_index("neck_rot")] += 0.3  # the head's start
+    q[5, skel.dof_index("lumbar_flex")] += 1e-13  # a trunk off by a rounding error
+    position = np.zeros((8, 3))
+    position[6, 0] = 0.05  # the root
+    rotation = np.tile(np.eye(3), (8, 1, 1))
+    aims = np.tile([0.1, 0.05, 1.1], (8, 1))  # a bolt near the floor ahead: past the neck
+    aims[7, 1] = 0.3  # the target
+    solved = gaze.HeadSolves(skel)
+    heads = {}
+    for row in [0, 0, 1, 2, 3, 4, 5, 6, 7, 7]:
+        got = solved.solve(q[row], (position, rotation), aims, row)
+        want = real(skel, q[row][None], (position, rotation), aims, [row], restarts=0)[0]
+        assert np.array_equal(got, want), row
+        heads[row] = got[solved.active]
+    # asked anew: rows 0, 3 (trunk), 4 (start), 5 (a trunk's last bit), 6 (root), 7 (target)
+    assert len(calls) == 6
+    for row in (3, 4, 6, 7):  # each a question of its own, with an answer of its own
+        assert not np.array_equal(heads[row], heads[0]), row

@@ -31,6 +31,7 @@ import numpy as np
 
 from mtlc.body import forward_part, site_direction, site_positions
 from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
+from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, Frames, GoalSpec, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
@@ -326,11 +327,12 @@ def follow_the_work(
     samples = [sample_times(p) for p in parts]
     body = body_at(ir, np.concatenate(samples))  # the head's own dofs are set per part below
     head_free = [end for _, end in looks]
+    solved = HeadSolves(ir.skeleton)
     offset = 0
     for part, times in zip(parts, samples, strict=True):
         rows = slice(offset, offset + len(times))
         offset += len(times)
-        seg = follow_part(ir, state, part, times, _rows(body, rows), head_free)
+        seg = follow_part(ir, state, part, times, _rows(body, rows), head_free, solved)
         if seg is None:
             continue
         insert_in_time_order(ir.segments, seg)
@@ -510,8 +512,10 @@ def follow_part(
     times: FloatArray,
     body: Frames,
     head_free: list[float],
+    solved: HeadSolves | None = None,
 ) -> Segment | None:
-    """The head segment that follows one part of the work: hold, turn, track."""
+    """The head segment that follows one part of the work: hold, turn, track (``solved``:
+    the pass's row solves so far, see ``HeadSolves``)."""
     skel = ir.skeleton
     dofs = default_dofs(skel, ["gaze"], "arm")
     head0 = state.q_at(part.start)[dofs]
@@ -535,7 +539,7 @@ def follow_part(
     aims = np.array([a.target for a in plan])
     q_rows = body.q[idx]
     roots = (body.root_position[idx], body.root_rotation[idx])
-    q_head = aim_rows(skel, q_rows, roots, aims, times[idx])
+    q_head = aim_rows(skel, q_rows, roots, aims, times[idx], solved)
     errors = aim_errors(skel, q_head, roots[0], roots[1], aims)
     kf_time = np.concatenate([[turn_start], times[idx]])
     kf_q = np.vstack([head0[None], q_head[:, dofs]])
@@ -567,6 +571,7 @@ def aim_rows(
     roots: tuple[FloatArray, FloatArray],
     aims: FloatArray,
     times: FloatArray,
+    solved: HeadSolves | None = None,
 ) -> FloatArray:
     """Solve the head of every row for its aim, one batch per target.
 
@@ -585,7 +590,7 @@ def aim_rows(
         start = out[rows].copy()
         start[:, gaze_dofs] = seed[0, gaze_dofs]
         out[rows] = solve_rows(skel, start, roots, aims, np.flatnonzero(rows), restarts=0)
-        keep_branch(skel, out, roots, aims, np.flatnonzero(rows), times)
+        keep_branch(skel, out, roots, aims, np.flatnonzero(rows), times, solved)
     return out
 
 
@@ -596,13 +601,17 @@ def keep_branch(
     aims: FloatArray,
     rows: FloatArray,
     times: FloatArray,
+    solved: HeadSolves | None = None,
 ) -> None:
     """Re-solve, from the row before, each row whose head jumped from it (issue 19).
 
     With the target near or past the neck's range several heads aim about as well, and rows
     solved from one seed fell on either (the neck swung 45 deg between two frames while a
-    wrench swung on the access panel); from the row before, the solver stays on its branch."""
+    wrench swung on the access panel); from the row before, the solver stays on its branch.
+    ``solved``: the solves asked before, reused where a row asks one again (``HeadSolves``)."""
     gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
+    if solved is None:
+        solved = HeadSolves(skel)  # type: ignore[arg-type]
     rows = np.asarray(rows, dtype=np.intp)
     if len(rows) < 2:
         return
@@ -620,9 +629,42 @@ def keep_branch(
         if np.abs(out[b, gaze_dofs] - out[a, gaze_dofs]).max() <= allowed:
             continue
         moved = True
-        start = out[b : b + 1].copy()
-        start[0, gaze_dofs] = out[a, gaze_dofs]
-        out[b] = solve_rows(skel, start, roots, aims, [b], restarts=0)[0]
+        start = out[b].copy()
+        start[gaze_dofs] = out[a, gaze_dofs]
+        out[b] = solved.solve(start, roots, aims, b)
+
+
+class HeadSolves:
+    """The one-row head solves (``restarts=0``) of a pass so far, by their exact inputs.
+
+    ``keep_branch`` solves a row again from the head of the row before; where the trunk and
+    the target hold still (a wrench turning on a bolt out of the neck's range: the arm moves,
+    the head's chain does not), the solver returns its start, the row before's head, and the
+    next row asks the same question again (1,157 of the 1,266 solves of fuzz case 4441's
+    lint). A row's head is a function of the angles its model bakes in (the trunk under the
+    neck), the head's start, the root and the target alone, bit for bit (the solver draws no
+    random numbers without restarts): those bytes are the key, and a row asked again is its
+    start with the head found the first time."""
+
+    def __init__(self, skel: Skeleton) -> None:
+        model = prepare(skel, ["gaze"])
+        self.skel, self.baked, self.active = skel, model.baked, model.active
+        self.found: dict[tuple[bytes, ...], FloatArray] = {}
+
+    def solve(
+        self, start: FloatArray, roots: tuple[FloatArray, FloatArray], aims: FloatArray, row: int
+    ) -> FloatArray:
+        """``solve_rows(skel, start[None], roots, aims, [row], restarts=0)[0]``."""
+        key = (start[self.baked].tobytes(), start[self.active].tobytes(),
+               roots[0][row].tobytes(), roots[1][row].tobytes(), aims[row].tobytes())  # fmt: skip
+        head = self.found.get(key)
+        if head is None:
+            q = solve_rows(self.skel, start[None], roots, aims, [row], restarts=0)[0]
+            self.found[key] = q[self.active].copy()
+            return q
+        q = start.copy()  # the solver returns its start's other dofs as they are
+        q[self.active] = head
+        return q
 
 
 def solve_rows(

@@ -11,7 +11,7 @@ operations. Per-call overhead, not arithmetic, is what a single solve pays for.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -55,6 +55,8 @@ class _Structure:
     coordinates: tuple[list[int], FloatArray] | None
     # per frozen joint: joint, parent, its dofs with the axis' K and K @ K (Rodrigues' terms)
     frozen_dofs: list[tuple[int, int, list[tuple[int, FloatArray, FloatArray]]]]
+    # ``_StackedPlan`` of the problem, built by the first model that evaluates by matrices
+    stacked: list[_StackedPlan] = field(default_factory=list)
 
 
 def _structure(skel: Skeleton, sites: tuple[str, ...], active: NDArray[np.intp]) -> _Structure:
@@ -190,6 +192,7 @@ class ChainModel:
         if act.size == 0:
             raise ValueError("no dofs to move")
         st = _structure(skel, self.sites, act)
+        self._structure = st
         self.active = st.active
         qb = np.atleast_2d(np.asarray(q_base, dtype=float))
         self.B = qb.shape[0]
@@ -427,7 +430,28 @@ def _selector(indices: list[int], broadcast: bool = False) -> Selector:
 
 
 class _Stacked:
-    """Where ``evaluate_matrices`` keeps each number.
+    """``evaluate_matrices``' plan for one model: the problem's ``_StackedPlan`` (its
+    attributes, the same objects) and the model's own numbers: the fixed angles in the order
+    of the steps (``q_steps``), the frozen frames and positions of a one-row base, the one-row
+    evaluation's buffers (``one``)."""
+
+    def __init__(self, model: ChainModel) -> None:
+        st = model._structure
+        if not st.stacked:
+            st.stacked.append(_StackedPlan(model))
+        plan = st.stacked[0]
+        self.__dict__.update(plan.__dict__)
+        self.q_steps = model._qlive[:, plan.perm]
+        if model.B == 1:
+            self.frozen_R = np.array([model._base_R[j][0] for j in plan.frozen]).reshape(-1, 3, 3)
+            self.frozen_p = np.array([model._base_p[j][0] for j in plan.frozen]).reshape(-1, 3)
+        self.one = _OneRow(self) if model.B == 1 and plan.steps_are_views else None
+
+
+class _StackedPlan:
+    """Where ``evaluate_matrices`` keeps each number: what the problem's structure fixes of
+    it (the sites, dofs and joints; not the base angles), built once per ``_Structure`` (a
+    pass that solves one pose at a time builds a model a solve: this was half its cost).
 
     ``Z`` (b, n_frames, 3, 3): the frozen joints' frames, then one block per depth of live
     joints and dof step (the step's joints' running products, the joints with more dofs
@@ -481,14 +505,11 @@ class _Stacked:
                 src, z = list(range(z, z + m)), z + m
         self.steps = tuple(steps)
         self.n_frames = z
-        self.q_steps = model._qlive[:, perm]
+        self.perm = perm
         act = dict(zip(model._act_pos.tolist(), model._act_col.tolist(), strict=True))
         self.act_steps = np.array([t for t, slot in enumerate(perm) if slot in act], dtype=np.intp)
         self.act_cols = np.array([act[slot] for slot in perm if slot in act], dtype=np.intp)
         self.A0, self.A1, self.A2 = model._A0[perm], model._A1[perm], model._A2[perm]
-        if model.B == 1:
-            self.frozen_R = np.array([model._base_R[j][0] for j in frozen]).reshape(-1, 3, 3)
-            self.frozen_p = np.array([model._base_p[j][0] for j in frozen]).reshape(-1, 3)
         cols = range(model.n)
         n_sites = len(site_live)
         axis_slot = {colk: slot for _li, _pj, _o, dofs in plan for slot, colk in dofs}
@@ -537,8 +558,7 @@ class _Stacked:
         )
         self.mask = model.mask[None, :, :, None]
         self.mask_dof_major = model.mask.T[None, :, :, None]
-        steps_are_views = all(isinstance(src, slice) for src, _rot, _dst in self.steps)
-        self.one = _OneRow(self) if model.B == 1 and steps_are_views else None
+        self.steps_are_views = all(isinstance(src, slice) for src, _rot, _dst in self.steps)
 
 
 class _OneRow:

@@ -15,9 +15,10 @@ the gait and the root plan keep it continuous).
 
 After subtracting, angles are clipped into their limits, so smoothing never pushes a joint
 past one. Subtracting offsets moves the limbs, so contacts are then restored on the frames it
-changed: feet that touched the ground and hands on their sites (TO and after, see
-``balance.hand_pins``) are re-solved by IK back to where they were before smoothing, with the
-same routine balance uses. Re-pinning (rather than skipping the pinned frames) keeps the
+changed: a foot that touched the ground keeps its leg's angles from before smoothing where the
+root did not move (its foot is then exactly where it was); elsewhere feet that touched and hands
+on their sites (TO and after, see ``balance.hand_pins``) are re-solved by IK back to where they
+were before smoothing, with the same routine balance uses. Re-pinning (rather than skipping the pinned frames) keeps the
 pelvis and trunk smooth through a contact window while the hand and feet stay put.
 """
 

@@ -408,9 +408,9 @@ def forward_part(
     sites: Sequence[str],
 ) -> Pose:
     """``forward(skel, q, ...)`` (``with_axes=False``) of only the joints that carry ``sites``
-    (site or joint names) and their ancestors; every other joint's frame is NaN. The same products in the same order
-    as ``forward``, so the same numbers: a pass that needs a hand's or the feet's positions on
-    thousands of frames places 7 or 9 joints, not 21."""
+    (site or joint names) and their ancestors; every other joint's frame is NaN. The same
+    products in the same order as ``forward``, so the same numbers: a pass that needs a hand's
+    or the feet's positions on thousands of frames places 7 or 9 joints, not 21."""
     qa = np.asarray(q, dtype=float)
     if qa.shape[-1] != skel.n_dofs:
         raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")

@@ -467,11 +467,22 @@ def solved(
         solver.__module__, solver.__name__, id(skel), tuple(_goal_key(g) for g in goals),
         array_key(q0), id(model), tuple(sorted(options.items())),
     )  # fmt: skip
-    store: dict[Any, tuple[IKResult, Any, ChainModel]]
-    store = ctx_cache.setdefault("passes.state.solves", {})
-    hit = store.get(key)
+    return remembered(  # type: ignore[no-any-return]
+        ctx_cache, "passes.state.solves", key,
+        lambda: solver(skel, goals, q0, model=model, **options), skel, model,
+    )  # fmt: skip
+
+
+def remembered(
+    ctx_cache: dict[str, Any], store: str, key: Any, make: Callable[[], Any], *alive: Any
+) -> Any:
+    """``make()`` once per compile for an exact ``key`` (at most ``SOLVES_KEPT`` in ``store``),
+    a deep copy each time (callers change what they get). ``alive``: the objects whose ids the
+    key holds, kept alive with the entry so that no other object takes their id."""
+    found: dict[Any, tuple[Any, tuple[Any, ...]]] = ctx_cache.setdefault(store, {})
+    hit = found.get(key)
     if hit is None:
-        if len(store) >= SOLVES_KEPT:
-            store.clear()
-        hit = store[key] = (solver(skel, goals, q0, model=model, **options), skel, model)
+        if len(found) >= SOLVES_KEPT:
+            found.clear()
+        hit = found[key] = (make(), alive)
     return copy.deepcopy(hit[0])

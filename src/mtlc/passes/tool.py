@@ -41,7 +41,7 @@ from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_shor
 from mtlc.passes.chain_ik import ChainSolve, RowChain, ScalarChain, solve_rows
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.profile import minimum_jerk, placing_clock
-from mtlc.passes.state import SOLVES_KEPT, PoseState, array_key, reanchor
+from mtlc.passes.state import PoseState, array_key, reanchor, remembered
 
 LIFT = 0.03  # m the tool is lifted off the fastener to swing back
 SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener before swinging
@@ -723,16 +723,10 @@ def _keys_solved(
         id(state.skel), seg.goal.effector, array_key(hands), array_key(tips), array_key(q0),
         array_key(root[0]), array_key(root[1]), array_key(clock), first, array_key(trunk),
     )  # fmt: skip
-    store = cache.setdefault("passes.tool.keys", {})
-    hit = store.get(key)
-    if hit is None:
-        if len(store) >= SOLVES_KEPT:
-            store.clear()
-        hit = store[key] = (
-            _solve_keys(state, seg, hands, tips, q0, root, clock, first, trunk), state.skel,
-        )  # fmt: skip
-    q, reach, tip_err, kept_trunk = hit[0]
-    return q.copy(), reach, tip_err.copy(), None if kept_trunk is None else kept_trunk.copy()
+    return remembered(  # type: ignore[no-any-return]
+        cache, "passes.tool.keys", key,
+        lambda: _solve_keys(state, seg, hands, tips, q0, root, clock, first, trunk), state.skel,
+    )  # fmt: skip
 
 
 def _closed(

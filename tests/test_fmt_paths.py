@@ -467,3 +467,69 @@ def test_tokenize_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
     assert _lexed(lexer.tokenize, text) == _lexed(_reference_tokenize, text)
     monkeypatch.setattr(lexer, "_OPENER", {")": "[", "]": "(", "}": "{"})
     assert _lexed(lexer.tokenize, text) != _lexed(_reference_tokenize, text)
+
+
+# ---------------------------------------------------------------- the plain-text tokenizer
+
+
+def _both_loops(text: str) -> tuple[object, object, bool]:
+    """(tokens, comments, item ends, diagnostics) by ``tokenize`` and by its general loop
+    ``_tokenize`` alone, and whether ``tokenize`` took its plain-text path."""
+
+    def run(tokenize) -> tuple[object, ...]:  # type: ignore[no-untyped-def]
+        sink = DiagnosticSink()
+        found: list[Token] = []
+        ends: list[int] = []
+        tokens = tokenize(text, "x.mtask", sink, found, ends)
+
+        def fields(t: Token) -> tuple[object, ...]:
+            return (type(t), t.type, t.value, t.start_pos, t.line, t.column, t.end_line,
+                    t.end_column, t.end_pos)  # fmt: skip
+
+        diags = [(d.code, d.message, d.span, d.help) for d in sink.items]
+        return [fields(t) for t in tokens], [fields(t) for t in found], ends, diags
+
+    return run(lexer.tokenize), run(lexer._tokenize), lexer._plain_tokens(text, True) is not None
+
+
+_PLAIN = [*" \t\f\v\n\r#\"()[]{},.;:=+-*/e_19", "abc", "use", "site", "12.5e3", ".5", "1.",
+          "  ", "# c", "# é", '"é"', "\r\n", "1x", "x1", "é", "$", "\u3000", "“"]  # fmt: skip
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.sampled_from(_PLAIN), max_size=50))
+def test_plain_tokens_equal_the_general_loop(parts: list[str]) -> None:
+    fast, general, _ = _both_loops("".join(parts))
+    assert fast == general
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_program())
+def test_plain_tokens_equal_the_general_loop_on_programs(text: str) -> None:
+    fast, general, plain = _both_loops(text)
+    assert fast == general
+    assert plain or not text.isascii() or '"' in text or text[-1:].isspace()
+
+
+def test_plain_tokens_on_the_shipped_and_mutated_files() -> None:
+    taken = 0
+    texts = [p.read_text(encoding="utf-8") for p in [*EXAMPLES, *STDLIB, MESSY]]
+    rng = random.Random("plain")
+    sources = fuzz.example_sources()
+    texts += [fuzz.mutate(rng, sources).decode("utf-8", "replace") for _ in range(200)]
+    for text in texts:
+        fast, general, plain = _both_loops(text)
+        assert fast == general
+        taken += plain
+    assert taken >= len(EXAMPLES) + len(STDLIB)  # the path is taken, not just skipped
+
+
+def test_plain_tokens_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain path that read a lexeme starting with `.` as a name differs."""
+    text = "task t {\n    a(.5, b.c)\n}\n"
+    fast, general, plain = _both_loops(text)
+    assert plain and fast == general
+    wrong = {**lexer._first_chars(), ".": lexer._NAME}
+    monkeypatch.setattr(lexer, "_first_chars", lambda: wrong)
+    fast, general, plain = _both_loops(text)
+    assert plain and fast != general

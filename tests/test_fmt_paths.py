@@ -511,7 +511,11 @@ def test_plain_tokens_equal_the_general_loop_on_programs(text: str) -> None:
     assert plain or not text.isascii() or '"' in text or text[-1:].isspace()
 
 
-def test_plain_tokens_on_the_shipped_and_mutated_files() -> None:
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 16])
+def test_plain_tokens_on_the_shipped_and_mutated_files(
+    chunk: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(lexer, "_CHUNK", chunk)  # chunks of the text cut after a new line
     taken = 0
     texts = [p.read_text(encoding="utf-8") for p in [*EXAMPLES, *STDLIB, MESSY]]
     rng = random.Random("plain")

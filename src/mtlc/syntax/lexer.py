@@ -250,6 +250,9 @@ def _first_chars() -> dict[str, int]:
     return kinds
 
 
+_CHUNK = 1 << 16  # characters of text that _plain_tokens matches at a time (about)
+
+
 def _plain_tokens(
     text: str, want_comments: bool
 ) -> tuple[list[Token], list[Token], list[int] | None] | None:
@@ -277,78 +280,85 @@ def _plain_tokens(
     line, line_start = 1, 0
     last_type = ""
     pos = 0  # where the current match starts
-    for spaces, value in _plain_regex().findall(text):
-        start = pos + len(spaces) if spaces else pos
-        pos = end = start + len(value)
-        kind = first.get(value[0])
-        if kind == _NAME:
-            ttype = keywords.get(value, "NAME")
-            if start == line_start and brackets:
-                plain = False
-        elif kind == _PUNCT:
-            ttype = punctuation[value]
-            if value in "([{":
-                brackets.append(value)
-                still_open[value] += 1
-                if len(brackets) > MAX_NESTING:
+    findall = _plain_regex().findall
+    n = len(text)
+    while pos < n:
+        # about 64 KB at a time, up to just after a `\n`, which always ends a lexeme (no
+        # lexeme but a new line holds one): the chunks' matches are the whole text's, and no
+        # list of all the file's pairs is held at once (40 MB: fresh memory, page faults)
+        cut = text.find("\n", pos + _CHUNK)
+        for spaces, value in findall(text, pos, n if cut < 0 else cut + 1):
+            start = pos + len(spaces) if spaces else pos
+            pos = end = start + len(value)
+            kind = first.get(value[0])
+            if kind == _NAME:
+                ttype = keywords.get(value, "NAME")
+                if start == line_start and brackets:
                     plain = False
-            elif value in ")]}":
-                opener = opener_of[value]
-                if brackets and brackets[-1] == opener:
-                    brackets.pop()
-                    still_open[opener] -= 1
-                else:
-                    plain = False
-                    if still_open[opener]:
-                        while (popped := brackets.pop()) != opener:
-                            still_open[popped] -= 1
+            elif kind == _PUNCT:
+                ttype = punctuation[value]
+                if value in "([{":
+                    brackets.append(value)
+                    still_open[value] += 1
+                    if len(brackets) > MAX_NESTING:
+                        plain = False
+                elif value in ")]}":
+                    opener = opener_of[value]
+                    if brackets and brackets[-1] == opener:
+                        brackets.pop()
                         still_open[opener] -= 1
-        elif kind == _NUMBER:
-            ttype = "NUMBER" if value != "." else "DOT"  # `.5` is a number, `.` punctuation
-        elif kind == _NL:
-            if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
-                if not brackets:
-                    item_ends.append(len(tokens))
-                col = start - line_start + 1
-                tok = _new_str(Token, "\n")
-                tok.type = NEWLINE
-                tok.start_pos = start
-                tok.value = "\n"
-                tok.line = line
-                tok.column = col
-                tok.end_line = line
-                tok.end_column = col + 1
-                tok.end_pos = end
-                tokens.append(tok)
-                last_type = NEWLINE
-            line += 1
-            line_start = end
-            continue
-        elif kind == _COMMENT:
-            if want_comments:
-                col = start - line_start + 1
-                found.append(
-                    Token("COMMENT", value, start, line, col, line, col + end - start, end)
-                )
-            continue
-        elif kind == _STRING and len(value) > 1:
-            ttype = "STRING"
-        elif kind is None and end == len(text) and value in " \t\f\v":
-            continue  # spaces that end the text (the regex keeps their last for [\s\S])
-        else:
-            return None
-        col = start - line_start + 1
-        tok = _new_str(Token, value)
-        tok.type = ttype
-        tok.start_pos = start
-        tok.value = value
-        tok.line = line
-        tok.column = col
-        tok.end_line = line
-        tok.end_column = col + (end - start)
-        tok.end_pos = end
-        tokens.append(tok)
-        last_type = ttype
+                    else:
+                        plain = False
+                        if still_open[opener]:
+                            while (popped := brackets.pop()) != opener:
+                                still_open[popped] -= 1
+                            still_open[opener] -= 1
+            elif kind == _NUMBER:
+                ttype = "NUMBER" if value != "." else "DOT"  # `.5` is a number, `.` punctuation
+            elif kind == _NL:
+                if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                    if not brackets:
+                        item_ends.append(len(tokens))
+                    col = start - line_start + 1
+                    tok = _new_str(Token, "\n")
+                    tok.type = NEWLINE
+                    tok.start_pos = start
+                    tok.value = "\n"
+                    tok.line = line
+                    tok.column = col
+                    tok.end_line = line
+                    tok.end_column = col + 1
+                    tok.end_pos = end
+                    tokens.append(tok)
+                    last_type = NEWLINE
+                line += 1
+                line_start = end
+                continue
+            elif kind == _COMMENT:
+                if want_comments:
+                    col = start - line_start + 1
+                    found.append(
+                        Token("COMMENT", value, start, line, col, line, col + end - start, end)
+                    )
+                continue
+            elif kind == _STRING and len(value) > 1:
+                ttype = "STRING"
+            elif kind is None and end == n and value in " \t\f\v":
+                continue  # spaces that end the text (the regex keeps their last for [\s\S])
+            else:
+                return None
+            col = start - line_start + 1
+            tok = _new_str(Token, value)
+            tok.type = ttype
+            tok.start_pos = start
+            tok.value = value
+            tok.line = line
+            tok.column = col
+            tok.end_line = line
+            tok.end_column = col + (end - start)
+            tok.end_pos = end
+            tokens.append(tok)
+            last_type = ttype
     ends = None
     if plain and not brackets:
         item_ends.append(len(tokens))

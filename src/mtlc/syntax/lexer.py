@@ -237,7 +237,7 @@ def _plain_regex() -> re.Pattern[str]:
     )
 
 
-_NAME, _NUMBER, _PUNCT, _NL, _COMMENT, _STRING = range(6)
+_NAME, _NUMBER, _PUNCT, _OPEN, _CLOSE, _NL, _COMMENT, _STRING = range(8)
 
 
 @cache
@@ -245,6 +245,8 @@ def _first_chars() -> dict[str, int]:
     """What a _plain_regex lexeme is, by its first character (others: not a plain lexeme)."""
     kinds = {ch: _NAME for ch in "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ_"}
     kinds.update({p: _PUNCT for p in lexicon().punctuation})
+    kinds.update({p: _OPEN for p in "([{"})
+    kinds.update({p: _CLOSE for p in ")]}"})
     kinds.update({ch: _NUMBER for ch in "0123456789."})  # a `.` alone: punctuation
     kinds.update({"\n": _NL, "\r": _NL, "#": _COMMENT, '"': _STRING})
     return kinds
@@ -282,6 +284,7 @@ def _plain_tokens(
     pos = 0  # where the current match starts
     findall = _plain_regex().findall
     n = len(text)
+    new_str, token, append = _new_str, Token, tokens.append
     while pos < n:
         # about 64 KB at a time, up to just after a `\n`, which always ends a lexeme (no
         # lexeme but a new line holds one): the chunks' matches are the whole text's, and no
@@ -289,7 +292,8 @@ def _plain_tokens(
         cut = text.find("\n", pos + _CHUNK)
         for spaces, value in findall(text, pos, n if cut < 0 else cut + 1):
             start = pos + len(spaces) if spaces else pos
-            pos = end = start + len(value)
+            size = len(value)
+            pos = end = start + size
             kind = first.get(value[0])
             if kind == _NAME:
                 ttype = keywords.get(value, "NAME")
@@ -297,22 +301,24 @@ def _plain_tokens(
                     plain = False
             elif kind == _PUNCT:
                 ttype = punctuation[value]
-                if value in "([{":
-                    brackets.append(value)
-                    still_open[value] += 1
-                    if len(brackets) > MAX_NESTING:
-                        plain = False
-                elif value in ")]}":
-                    opener = opener_of[value]
-                    if brackets and brackets[-1] == opener:
-                        brackets.pop()
+            elif kind == _OPEN:
+                ttype = punctuation[value]
+                brackets.append(value)
+                still_open[value] += 1
+                if len(brackets) > MAX_NESTING:
+                    plain = False
+            elif kind == _CLOSE:
+                ttype = punctuation[value]
+                opener = opener_of[value]
+                if brackets and brackets[-1] == opener:
+                    brackets.pop()
+                    still_open[opener] -= 1
+                else:
+                    plain = False
+                    if still_open[opener]:
+                        while (popped := brackets.pop()) != opener:
+                            still_open[popped] -= 1
                         still_open[opener] -= 1
-                    else:
-                        plain = False
-                        if still_open[opener]:
-                            while (popped := brackets.pop()) != opener:
-                                still_open[popped] -= 1
-                            still_open[opener] -= 1
             elif kind == _NUMBER:
                 ttype = "NUMBER" if value != "." else "DOT"  # `.5` is a number, `.` punctuation
             elif kind == _NL:
@@ -320,7 +326,7 @@ def _plain_tokens(
                     if not brackets:
                         item_ends.append(len(tokens))
                     col = start - line_start + 1
-                    tok = _new_str(Token, "\n")
+                    tok = new_str(token, "\n")
                     tok.type = NEWLINE
                     tok.start_pos = start
                     tok.value = "\n"
@@ -329,7 +335,7 @@ def _plain_tokens(
                     tok.end_line = line
                     tok.end_column = col + 1
                     tok.end_pos = end
-                    tokens.append(tok)
+                    append(tok)
                     last_type = NEWLINE
                 line += 1
                 line_start = end
@@ -341,23 +347,23 @@ def _plain_tokens(
                         Token("COMMENT", value, start, line, col, line, col + end - start, end)
                     )
                 continue
-            elif kind == _STRING and len(value) > 1:
+            elif kind == _STRING and size > 1:
                 ttype = "STRING"
             elif kind is None and end == n and value in " \t\f\v":
                 continue  # spaces that end the text (the regex keeps their last for [\s\S])
             else:
                 return None
             col = start - line_start + 1
-            tok = _new_str(Token, value)
+            tok = new_str(token, value)
             tok.type = ttype
             tok.start_pos = start
             tok.value = value
             tok.line = line
             tok.column = col
             tok.end_line = line
-            tok.end_column = col + (end - start)
+            tok.end_column = col + size
             tok.end_pos = end
-            tokens.append(tok)
+            append(tok)
             last_type = ttype
     ends = None
     if plain and not brackets:

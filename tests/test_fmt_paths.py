@@ -27,12 +27,12 @@ from conftest import EXAMPLES, ROOT, STDLIB
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from lark import Token
-from test_fmt import MESSY, _doc_examples, _program
+from test_fmt import _IGNORES, MESSY, _doc_examples, _program
 
 import mtlc.fmt.printer as printer
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.fmt import FormatResult, format_source
-from mtlc.syntax import lexer
+from mtlc.syntax import lexer, suppressions
 from mtlc.syntax.grammar import lexicon
 
 _spec = importlib.util.spec_from_file_location("mtlc_bench_fuzz_paths", ROOT / "bench" / "fuzz.py")
@@ -537,3 +537,39 @@ def test_plain_tokens_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> No
     monkeypatch.setattr(lexer, "_first_chars", lambda: wrong)
     fast, general, plain = _both_loops(text)
     assert plain and fast != general
+
+
+# ---------------------------------------------------------------- suppressions, by lines
+
+
+def _marks(text: str) -> list[tuple[object, ...]]:
+    return [(m.code, m.span, m.first_line, m.last_line) for m in suppressions.scan("f", text)]
+
+
+def _assert_same_marks_any_breaks(text: str) -> None:
+    """``scan`` splits a text without `\r` with str.split, any other with the regex: lines and
+    columns do not depend on how the lines are broken, so both ways find the same marks."""
+    plain = text.replace("\r\n", "\n").replace("\r", "\n")
+    expected = _marks(plain)
+    assert _marks(plain.replace("\n", "\r\n")) == expected
+    assert _marks(plain.replace("\n", "\r")) == expected
+    assert _marks(plain + "\r") == expected  # a lone `\r` at the end: the regex's way
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_suppressions_scan_the_same_with_any_line_breaks(data: st.DataObject) -> None:
+    text = data.draw(_program()).replace("# c", data.draw(_IGNORES))
+    _assert_same_marks_any_breaks(text)
+
+
+def test_suppressions_scan_the_shipped_files_with_any_line_breaks() -> None:
+    found = 0
+    for path in [*EXAMPLES, *STDLIB, MESSY]:
+        text = path.read_text(encoding="utf-8")
+        _assert_same_marks_any_breaks(text)
+        found += len(_marks(text))
+    text = "task t {  # mtlc: ignore[MT0501]\n    a()\n}\nb()  # mtlc: ignore[MT0601]\n"
+    _assert_same_marks_any_breaks(text)
+    assert [(m[2], m[3]) for m in _marks(text)] == [(1, 3), (4, 4)]
+    assert _marks("task t {\n}\n") == []  # no `mtlc:`: no split at all

@@ -27,12 +27,12 @@ from conftest import EXAMPLES, ROOT, STDLIB
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from lark import Token
-from test_fmt import MESSY, _doc_examples, _program
+from test_fmt import _IGNORES, MESSY, _doc_examples, _program
 
 import mtlc.fmt.printer as printer
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.fmt import FormatResult, format_source
-from mtlc.syntax import lexer
+from mtlc.syntax import lexer, suppressions
 from mtlc.syntax.grammar import lexicon
 
 _spec = importlib.util.spec_from_file_location("mtlc_bench_fuzz_paths", ROOT / "bench" / "fuzz.py")
@@ -467,3 +467,109 @@ def test_tokenize_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
     assert _lexed(lexer.tokenize, text) == _lexed(_reference_tokenize, text)
     monkeypatch.setattr(lexer, "_OPENER", {")": "[", "]": "(", "}": "{"})
     assert _lexed(lexer.tokenize, text) != _lexed(_reference_tokenize, text)
+
+
+# ---------------------------------------------------------------- the plain-text tokenizer
+
+
+def _both_loops(text: str) -> tuple[object, object, bool]:
+    """(tokens, comments, item ends, diagnostics) by ``tokenize`` and by its general loop
+    ``_tokenize`` alone, and whether ``tokenize`` took its plain-text path."""
+
+    def run(tokenize) -> tuple[object, ...]:  # type: ignore[no-untyped-def]
+        sink = DiagnosticSink()
+        found: list[Token] = []
+        ends: list[int] = []
+        tokens = tokenize(text, "x.mtask", sink, found, ends)
+
+        def fields(t: Token) -> tuple[object, ...]:
+            return (type(t), t.type, t.value, t.start_pos, t.line, t.column, t.end_line,
+                    t.end_column, t.end_pos)  # fmt: skip
+
+        diags = [(d.code, d.message, d.span, d.help) for d in sink.items]
+        return [fields(t) for t in tokens], [fields(t) for t in found], ends, diags
+
+    return run(lexer.tokenize), run(lexer._tokenize), lexer._plain_tokens(text, True) is not None
+
+
+_PLAIN = [*" \t\f\v\n\r#\"()[]{},.;:=+-*/e_19", "abc", "use", "site", "12.5e3", ".5", "1.",
+          "  ", "# c", "# é", '"é"', "\r\n", "1x", "x1", "é", "$", "\u3000", "“"]  # fmt: skip
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.sampled_from(_PLAIN), max_size=50))
+def test_plain_tokens_equal_the_general_loop(parts: list[str]) -> None:
+    fast, general, _ = _both_loops("".join(parts))
+    assert fast == general
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_program())
+def test_plain_tokens_equal_the_general_loop_on_programs(text: str) -> None:
+    fast, general, plain = _both_loops(text)
+    assert fast == general
+    assert plain or not text.isascii() or '"' in text or text[-1:].isspace()
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 16])
+def test_plain_tokens_on_the_shipped_and_mutated_files(
+    chunk: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(lexer, "_CHUNK", chunk)  # chunks of the text cut after a new line
+    taken = 0
+    texts = [p.read_text(encoding="utf-8") for p in [*EXAMPLES, *STDLIB, MESSY]]
+    rng = random.Random("plain")
+    sources = fuzz.example_sources()
+    texts += [fuzz.mutate(rng, sources).decode("utf-8", "replace") for _ in range(200)]
+    for text in texts:
+        fast, general, plain = _both_loops(text)
+        assert fast == general
+        taken += plain
+    assert taken >= len(EXAMPLES) + len(STDLIB)  # the path is taken, not just skipped
+
+
+def test_plain_tokens_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain path that read a lexeme starting with `.` as a name differs."""
+    text = "task t {\n    a(.5, b.c)\n}\n"
+    fast, general, plain = _both_loops(text)
+    assert plain and fast == general
+    wrong = {**lexer._first_chars(), ".": lexer._NAME}
+    monkeypatch.setattr(lexer, "_first_chars", lambda: wrong)
+    fast, general, plain = _both_loops(text)
+    assert plain and fast != general
+
+
+# ---------------------------------------------------------------- suppressions, by lines
+
+
+def _marks(text: str) -> list[tuple[object, ...]]:
+    return [(m.code, m.span, m.first_line, m.last_line) for m in suppressions.scan("f", text)]
+
+
+def _assert_same_marks_any_breaks(text: str) -> None:
+    """``scan`` splits a text without `\r` with str.split, any other with the regex: lines and
+    columns do not depend on how the lines are broken, so both ways find the same marks."""
+    plain = text.replace("\r\n", "\n").replace("\r", "\n")
+    expected = _marks(plain)
+    assert _marks(plain.replace("\n", "\r\n")) == expected
+    assert _marks(plain.replace("\n", "\r")) == expected
+    assert _marks(plain + "\r") == expected  # a lone `\r` at the end: the regex's way
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_suppressions_scan_the_same_with_any_line_breaks(data: st.DataObject) -> None:
+    text = data.draw(_program()).replace("# c", data.draw(_IGNORES))
+    _assert_same_marks_any_breaks(text)
+
+
+def test_suppressions_scan_the_shipped_files_with_any_line_breaks() -> None:
+    found = 0
+    for path in [*EXAMPLES, *STDLIB, MESSY]:
+        text = path.read_text(encoding="utf-8")
+        _assert_same_marks_any_breaks(text)
+        found += len(_marks(text))
+    text = "task t {  # mtlc: ignore[MT0501]\n    a()\n}\nb()  # mtlc: ignore[MT0601]\n"
+    _assert_same_marks_any_breaks(text)
+    assert [(m[2], m[3]) for m in _marks(text)] == [(1, 3), (4, 4)]
+    assert _marks("task t {\n}\n") == []  # no `mtlc:`: no split at all

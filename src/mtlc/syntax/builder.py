@@ -93,7 +93,8 @@ class AstBuilder(Transformer):
 
     # ------------------------------------------------------------ helpers
     def _sp(self, x: Any) -> Span:
-        if isinstance(x, Token):  # (the tuple built directly: a Span per token and node)
+        if type(x) is Token or isinstance(x, Token):  # (the tuple built directly: a Span per
+            # token and node; the exact type first: the lexer's tokens are all of it)
             return _new_span(
                 Span,
                 (self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos),
@@ -109,14 +110,14 @@ class AstBuilder(Transformer):
         (no span is made for either end: there is a join per node)."""
         if type(first) is Token:
             file, line, column, start = self.file, first.line, first.column, first.start_pos
-        else:
-            a = self._sp(first)
+        else:  # (a node's span read at once: _sp's answer, without its call)
+            a = first.span if isinstance(first, ast.Node) else self._sp(first)
             file, line, column, start = a[0], a[1], a[2], a[5]
         if type(last) is Token:
             return _new_span(
                 Span, (file, line, column, last.end_line, last.end_column, start, last.end_pos)
             )
-        b = self._sp(last)
+        b = last.span if isinstance(last, ast.Node) else self._sp(last)
         return _new_span(Span, (file, line, column, b[3], b[4], start, b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
@@ -362,7 +363,15 @@ class AstBuilder(Transformer):
 
     def call_stmt(self, c: list[Any]) -> ast.Call:
         (names, name_span), args, rpar = c
-        return _call(name_span.to(self._sp(rpar)), names, name_span, self._args(args))
+        if type(rpar) is Token:  # name_span.to(self._sp(rpar)), built directly
+            span = _new_span(
+                Span,
+                (name_span[0], name_span[1], name_span[2], rpar.end_line, rpar.end_column,
+                 name_span[5], rpar.end_pos),
+            )  # fmt: skip
+        else:
+            span = name_span.to(self._sp(rpar))
+        return _call(span, names, name_span, self._args(args))
 
     def repeat_stmt(self, c: list[Any]) -> ast.Repeat:
         return _repeat(self._join(c[0], c[2]), c[1], c[2])
@@ -529,15 +538,34 @@ class AstBuilder(Transformer):
                 help="a number must be finite: below 1.8e308",
             )
             return ast.Error(span=self._sp(num))
+        if type(num) is not Token or (unit is not None and type(unit) is not Token):
+            if unit is None:
+                return _number(self._sp(num), value, is_int, None, None)
+            return _number(self._join(num, unit), value, is_int, unit.value, self._sp(unit))
+        # the same spans, built directly from the tokens (a number per literal)
+        file, line, column, start = self.file, num.line, num.column, num.start_pos
         if unit is None:
-            return _number(self._sp(num), value, is_int, None, None)
-        return _number(self._join(num, unit), value, is_int, unit.value, self._sp(unit))
+            span = (file, line, column, num.end_line, num.end_column, start, num.end_pos)
+            return _number(_new_span(Span, span), value, is_int, None, None)
+        end_line, end_column, end = unit.end_line, unit.end_column, unit.end_pos
+        unit_span = (file, unit.line, unit.column, end_line, end_column, unit.start_pos, end)
+        return _number(
+            _new_span(Span, (file, line, column, end_line, end_column, start, end)),
+            value,
+            is_int,
+            unit.value,
+            _new_span(Span, unit_span),
+        )
 
     def string(self, c: list[Token]) -> ast.Expr:
         return _string(self._sp(c[0]), decode_string(c[0], self.file, self.sink))
 
     def name(self, c: list[Token]) -> ast.Expr:
-        return _name(self._sp(c[0]), c[0].value)
+        x = c[0]
+        if type(x) is not Token:
+            return _name(self._sp(x), x.value)
+        span = (self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos)
+        return _name(_new_span(Span, span), x.value)  # (_sp's span, built here: a name per word)
 
     def vector(self, c: list[Any]) -> ast.Expr:
         lpar, *items, rpar, unit = c

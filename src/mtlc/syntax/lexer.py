@@ -200,6 +200,186 @@ def tokenize(
     tokens, is appended to it: where the parser's items end, found here in passing instead of
     by the parser's walk over every bracket. Otherwise nothing is (the parser walks them).
     """
+    fast = _plain_tokens(text, comments_out is not None)
+    if fast is not None:
+        tokens, found, item_ends = fast
+        if comments_out is not None:
+            comments_out += found
+        if item_ends_out is not None and item_ends is not None:
+            item_ends_out += item_ends
+        return tokens
+    return _tokenize(text, file, sink, comments_out, item_ends_out)
+
+
+@cache
+def _plain_regex() -> re.Pattern[str]:
+    """The spaces before a lexeme, and the lexeme: an ASCII name, a number, punctuation, a new
+    line, a comment, a string, or any one other character (which _plain_tokens leaves to
+    _tokenize). Two groups, for ``findall``; every alternative takes a character at least, so
+    the matches tile the text and each one's offset is the sum of the lengths before it."""
+    lx = lexicon()
+    punct = "|".join(re.escape(p) for p in sorted(lx.punctuation, key=len, reverse=True))
+    uncaptured = [lx.patterns[k].replace("(", "(?:") for k in ("NUMBER", "STRING")]
+    return re.compile(
+        r"([ \t\f\v]*)("
+        + "|".join(
+            [
+                r"[A-Za-z_][A-Za-z0-9_]*",  # no digit first, as NAME's (?!\d)
+                uncaptured[0],
+                punct,
+                r"\r\n|\n|\r",
+                r"\#[^\r\n]*",
+                uncaptured[1],
+                r"[\s\S]",
+            ]
+        )
+        + ")"
+    )
+
+
+_NAME, _NUMBER, _PUNCT, _OPEN, _CLOSE, _NL, _COMMENT, _STRING = range(8)
+
+
+@cache
+def _first_chars() -> dict[str, int]:
+    """What a _plain_regex lexeme is, by its first character (others: not a plain lexeme)."""
+    kinds = {ch: _NAME for ch in "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ_"}
+    kinds.update({p: _PUNCT for p in lexicon().punctuation})
+    kinds.update({p: _OPEN for p in "([{"})
+    kinds.update({p: _CLOSE for p in ")]}"})
+    kinds.update({ch: _NUMBER for ch in "0123456789."})  # a `.` alone: punctuation
+    kinds.update({"\n": _NL, "\r": _NL, "#": _COMMENT, '"': _STRING})
+    return kinds
+
+
+_CHUNK = 1 << 16  # characters of text that _plain_tokens matches at a time (about)
+
+
+def _plain_tokens(
+    text: str, want_comments: bool
+) -> tuple[list[Token], list[Token], list[int] | None] | None:
+    """``_tokenize``'s tokens, comments and item ends (None: the brackets are not plainly
+    nested) for a text made only of ASCII names, numbers, punctuation, new lines, comments,
+    strings and the spaces between them; None for any other text (an error, a non-ASCII word,
+    spaces that end the text), which ``_tokenize`` reads instead.
+
+    The same tokens as ``_tokenize``'s: its regular expression gives the same lexemes here
+    (the alternatives start with different characters, but a number before the `.` of
+    punctuation, and a string before a lone `"`, as in _folded_regex; a name is cut short at
+    a non-ASCII character, which is then a lexeme of its own and not a plain one), and each
+    lexeme is made into a token by _tokenize's own steps for it. ``findall`` and a loop over
+    its pairs cost half of ``finditer`` and three method calls per match."""
+    lx = lexicon()
+    keywords, punctuation = lx.keywords, lx.punctuation
+    first = _first_chars()
+    opener_of = _OPENER
+    tokens: list[Token] = []
+    found: list[Token] = []
+    item_ends: list[int] = []
+    brackets: list[str] = []  # open ( and [ and {, innermost last
+    still_open = {"(": 0, "[": 0, "{": 0}
+    plain = True
+    line, line_start = 1, 0
+    last_type = ""
+    pos = 0  # where the current match starts
+    findall = _plain_regex().findall
+    n = len(text)
+    new_str, token, append = _new_str, Token, tokens.append
+    while pos < n:
+        # about 64 KB at a time, up to just after a `\n`, which always ends a lexeme (no
+        # lexeme but a new line holds one): the chunks' matches are the whole text's, and no
+        # list of all the file's pairs is held at once (40 MB: fresh memory, page faults)
+        cut = text.find("\n", pos + _CHUNK)
+        for spaces, value in findall(text, pos, n if cut < 0 else cut + 1):
+            start = pos + len(spaces) if spaces else pos
+            size = len(value)
+            pos = end = start + size
+            kind = first.get(value[0])
+            if kind == _NAME:
+                ttype = keywords.get(value, "NAME")
+                if start == line_start and brackets:
+                    plain = False
+            elif kind == _PUNCT:
+                ttype = punctuation[value]
+            elif kind == _OPEN:
+                ttype = punctuation[value]
+                brackets.append(value)
+                still_open[value] += 1
+                if len(brackets) > MAX_NESTING:
+                    plain = False
+            elif kind == _CLOSE:
+                ttype = punctuation[value]
+                opener = opener_of[value]
+                if brackets and brackets[-1] == opener:
+                    brackets.pop()
+                    still_open[opener] -= 1
+                else:
+                    plain = False
+                    if still_open[opener]:
+                        while (popped := brackets.pop()) != opener:
+                            still_open[popped] -= 1
+                        still_open[opener] -= 1
+            elif kind == _NUMBER:
+                ttype = "NUMBER" if value != "." else "DOT"  # `.5` is a number, `.` punctuation
+            elif kind == _NL:
+                if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                    if not brackets:
+                        item_ends.append(len(tokens))
+                    col = start - line_start + 1
+                    tok = new_str(token, "\n")
+                    tok.type = NEWLINE
+                    tok.start_pos = start
+                    tok.value = "\n"
+                    tok.line = line
+                    tok.column = col
+                    tok.end_line = line
+                    tok.end_column = col + 1
+                    tok.end_pos = end
+                    append(tok)
+                    last_type = NEWLINE
+                line += 1
+                line_start = end
+                continue
+            elif kind == _COMMENT:
+                if want_comments:
+                    col = start - line_start + 1
+                    found.append(
+                        Token("COMMENT", value, start, line, col, line, col + end - start, end)
+                    )
+                continue
+            elif kind == _STRING and size > 1:
+                ttype = "STRING"
+            elif kind is None and end == n and value in " \t\f\v":
+                continue  # spaces that end the text (the regex keeps their last for [\s\S])
+            else:
+                return None
+            col = start - line_start + 1
+            tok = new_str(token, value)
+            tok.type = ttype
+            tok.start_pos = start
+            tok.value = value
+            tok.line = line
+            tok.column = col
+            tok.end_line = line
+            tok.end_column = col + size
+            tok.end_pos = end
+            append(tok)
+            last_type = ttype
+    ends = None
+    if plain and not brackets:
+        item_ends.append(len(tokens))
+        ends = item_ends
+    return tokens, found, ends
+
+
+def _tokenize(
+    text: str,
+    file: str,
+    sink: DiagnosticSink,
+    comments_out: list[Token] | None,
+    item_ends_out: list[int] | None,
+) -> list[Token]:
+    """``tokenize`` for any text: every lexeme, diagnostics for the bad ones."""
     lx = lexicon()
     keywords, punctuation = lx.keywords, lx.punctuation
     wide = _wide_forms()

@@ -97,7 +97,10 @@ def _strip_strings(code: str) -> str:
 
 
 def scan(file: str, text: str) -> list[Suppression]:
-    lines = _LINE_BREAK.split(text)
+    if "mtlc:" not in text:  # no suppression anywhere (most files: no split into lines)
+        return []
+    # with no `\r`, the line breaks are the `\n`s alone: str.split, a fifth of the regex's time
+    lines = text.split("\n") if "\r" not in text else _LINE_BREAK.split(text)
     out: list[Suppression] = []
     for n, line in enumerate(lines):
         if "mtlc:" not in line:  # no suppression can be on it (most lines: no loop below)

@@ -835,6 +835,8 @@ def main(argv: list[str] | None = None) -> int:
         "--remeasure", type=Path, help="measure a --keep folder again instead of compiling"
     )
     args = parser.parse_args(argv)
+    if args.remeasure is not None and not args.remeasure.is_dir():
+        parser.error(f"--remeasure: {args.remeasure} is not a --keep folder")
 
     folder = args.save or Path(tempfile.mkdtemp(prefix="mtlc-generated-"))
     lo, hi = (int(x) for x in args.steps.split(":"))

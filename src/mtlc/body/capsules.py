@@ -378,6 +378,30 @@ def clearance(
     return _clearance(skel, pose, limbs, margin, directions=False)[0]
 
 
+def segment_clearance(
+    skel: Skeleton,
+    pose: Pose,
+    start: FloatArray,
+    end: FloatArray,
+    radius: float,
+    margin: float = CLEARANCE_MARGIN,
+) -> FloatArray:
+    """(N, ...) how far (m) the surface of a limb of ``radius`` whose axis runs from ``start``
+    to ``end`` (N, ..., 3: several candidate axes per pose) goes into the trunk or a thigh of
+    ``pose`` (N rows) grown by ``margin``: ``clearance``'s measure (its samples, its capsules)
+    of an axis that is not the pose's own, deepest sample and capsule. Positive: inside."""
+    lead = start.shape[:-1]
+    n = lead[0]
+    pts = start[..., None, :] + SAMPLE_FRACTIONS[:, None] * (end - start)[..., None, :]
+    pts = pts.reshape(n, -1, 3)  # (N, K·S, 3)
+    out = np.full(pts.shape[:2], -np.inf)
+    for cap in body_capsules(skel):
+        a, b = _capsule_axis(skel, pose, cap)
+        depth = depth_inside(pts, a, b, cap.radius + radius + margin)
+        np.maximum(out, depth, out=out)
+    return out.reshape(*lead, LIMB_SAMPLES).max(axis=-1)
+
+
 def clearance_directions(
     skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
 ) -> tuple[FloatArray, FloatArray]:

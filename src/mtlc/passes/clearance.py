@@ -36,13 +36,15 @@ from mtlc.body.ik.clearance import (
     penetration,
     penetration_dofs,
     penetrations,
+    swivel_clearance,
+    swiveled,
 )
 from mtlc.body.kinematics import forward, site_positions, site_rotation
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import carried_postures
-from mtlc.passes.joint_speed import speed_limited
+from mtlc.passes.joint_speed import speed_limited, worse_runs_undone
 
 PINNED = 30.0  # weight of the hand's pose where it has a goal (per metre of the clearance)
 FREE = 0.3  # ...and where it is free
@@ -75,6 +77,21 @@ HELD_DEEPER = 1e-3  # m deeper than the solve left it a widened held arm may end
 # rad a dof may turn from the widened pose to put the hand back: more is a new branch, not the
 # widening's (an arm 80 mm inside a panel's screw stood 13 deg out of both neighbours)
 HELD_SEED_TURN = math.radians(4.0)
+# the elbow turns a held hand's arm may take about its shoulder-wrist line (``swivel_plan``)
+SWIVEL_STEP = math.radians(2.5)
+SWIVEL_TURNS = SWIVEL_STEP * np.arange(-72, 73)
+SWIVEL_SPEED = math.radians(180.0)  # rad/s the plan turns the elbow at most
+STRAIGHT_ARM = 0.03  # m: an elbow this close to the shoulder-wrist line is not turned
+# dense frames a planned run may have at most (with its margins): a longer one (a long hold
+# with the arm inside) is left to the frame-by-frame solve, which bounds its own work
+PLAN_FRAMES = 1800
+SWIVEL_PRICE = 0.003  # m of depth a radian of turn is worth: turned no further than it must
+# a held arm's run of corrected frames is evened out where a step goes this share of
+# ``CORRECTED_JOINT_SPEED`` over it (four times the speed: a flip, not a fast turn)
+GIVE_BACK_SLACK = 3.0
+# ...where the plan turned the elbow, what a step may go over it: issue 19's 360 deg/s
+PLAN_SLACK = math.radians(360.0) / CORRECTED_JOINT_SPEED - 1.0
+FLIP_SHARES = (0.75, 0.5, 0.25)  # ...or of its correction, tried before it is given back
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -130,16 +147,9 @@ def without_swings(q: FloatArray, correction: FloatArray) -> FloatArray:
     out = correction.copy()
     moved = np.abs(correction).max(axis=1) > 0.0
     edges = np.flatnonzero(np.diff(np.concatenate([[0], moved.astype(int), [0]])))
-    width = 2 * SWING_SMOOTH + 1
     for a, b in zip(edges[::2], edges[1::2], strict=True):
-        run = correction[a:b]
-        if not np.any((swings >= a - 1) & (swings < b)):
-            continue
-        padded = np.pad(run, ((width, width), (0, 0)))
-        kernel = np.ones(width) / width
-        for _ in range(2):  # twice: a triangle, no corners
-            padded = np.apply_along_axis(np.convolve, 0, padded, kernel, mode="same")
-        out[a:b] = padded[width:-width]
+        if np.any((swings >= a - 1) & (swings < b)):
+            out[a:b] = _averaged(correction[a:b])
     return out
 
 
@@ -170,7 +180,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for k, side in enumerate(sides):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
-        cleared = keep_clear(skel, q, root, side, keep, firm=FIRM, inside=inside[side])
+        # a held hand's elbow turned round the body first, over time (``swivel_planned``):
+        # where the solve starts
+        start, depth = swivel_planned(skel, q, root, side, keep, frames.time, inside[side])
+        cleared = keep_clear(skel, q, root, side, keep, start=start, firm=FIRM, inside=depth)
         cleared = reseeded(skel, q, cleared, root, side, keep, frames.time, inside[side])
         smooth = swings_ramped(skel, q, cleared)
         if np.array_equal(smooth, cleared):
@@ -186,19 +199,134 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             result = swings_ramped(skel, q, again)
         # the correction's ends ramped no faster than a person turns a joint, where the hand
         # is free (a held hand keeps its own correction: it stays on its goal)
+        held = keep > FREE + EPS
         widened = speed_limited(q, result - q, skel.lower, skel.upper, frames.time,
-                                CORRECTED_JOINT_SPEED, fixed=keep > FREE + EPS)  # fmt: skip
+                                CORRECTED_JOINT_SPEED, fixed=held)  # fmt: skip
         moved = np.flatnonzero((widened != result - q).any(axis=1))
         if moved.size:
             result = result.copy()
             result[moved] = q[moved] + widened[moved]
         kept = result
         for _ in range(HELD_ROUNDS):
-            result = held_in_time(skel, q, result, kept, root, side, frames.time, keep > FREE + EPS)
+            result = held_in_time(skel, q, result, kept, root, side, frames.time, held)
+        # a held hand's arm (the speed limit above leaves it be: the hand stays on its goal):
+        # where the plan turned the elbow, no step faster than issue 19's 360 deg/s (the plan
+        # is the fallback there, clear where a turn can clear the arm, and that slowly);
+        # elsewhere no flip (a fuel filter's bowl carried past the thigh turned the wrist
+        # 26 deg in one output frame where the solve yielded the hand's orientation)
+        planned = (start != q).any(axis=1)
+        result = flips_evened(skel, start, result, root, side, frames.time, planned, PLAN_SLACK)
+        result = flips_evened(skel, start, result, root, side, frames.time, held)
         frames.q = result
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
+
+
+def swivel_planned(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    t: FloatArray,
+    inside: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Where the clearance solve of the ``side`` arm starts, and how deep it is there: for each
+    run of frames where a held hand's arm is inside (``keep`` over ``FREE``), its elbow turned
+    about the shoulder-wrist line as ``swivel_plan`` chooses over the whole run and as many
+    frames on each side as the plan needs to turn the elbow by 180 degrees at
+    ``SWIVEL_SPEED``; elsewhere ``q`` itself.
+
+    A held hand leaves the arm one motion, the elbow's turn; solved frame by frame, each frame
+    took the way out nearest its own pose, and the way round a thigh or the trunk flipped from
+    one side to the other between two frames: the shoulder's rotation swung 50-130 deg in one
+    output frame (issue 19, the rack module's low latch). Chosen over time, the turn starts
+    early enough to be done in time and goes round one side."""
+    held = (inside > 0.0) & (keep > FREE + EPS)
+    if not held.any() or len(t) < 2:
+        return q, inside
+    dt = float(np.median(np.diff(t)))
+    per_frame = max(1, int(SWIVEL_SPEED * dt / SWIVEL_STEP))
+    margin = int(np.ceil(np.abs(SWIVEL_TURNS).max() / (per_frame * SWIVEL_STEP))) + 1
+    rows = np.flatnonzero(held)
+    breaks = np.flatnonzero(np.diff(rows) > 2 * margin)
+    turns = np.zeros(len(t))
+    for first, last in zip(
+        np.concatenate([[0], breaks + 1]), np.concatenate([breaks, [len(rows) - 1]]), strict=True
+    ):
+        a, b = max(0, rows[first] - margin), min(len(t), rows[last] + margin + 1)
+        if b - a > PLAN_FRAMES:  # a long hold inside: left to the frame-by-frame solve
+            continue
+        chunks = [slice(c, min(c + 256, b)) for c in range(a, b, 256)]  # memory: 256 x G
+        measured = [
+            swivel_clearance(skel, q[c], (root[0][c], root[1][c]), side, SWIVEL_TURNS)
+            for c in chunks
+        ]
+        depth = np.concatenate([m[0] for m in measured])
+        offset = np.concatenate([m[1] for m in measured])
+        turns[a:b] = swivel_plan(depth, per_frame, a == 0, b == len(t), offset < STRAIGHT_ARM)
+    if not turns.any():
+        return q, inside
+    start = swiveled(skel, q, root, side, turns, PINNED)
+    # the hand exactly where it was (the turned elbow's solve weighs it, it does not fix it;
+    # a turn past a joint's limit pulled it off), else the run of frames is not turned at all
+    # (a frame of it alone left unturned would be a step)
+    rows = np.flatnonzero(turns != 0.0)
+    sub_root = (root[0][rows], root[1][rows])
+    put, ok = hand_restored(skel, start[rows], q[rows], sub_root, side)
+    start[rows] = put
+    lost = np.zeros(len(t), dtype=bool)
+    lost[rows[~ok]] = True
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (turns != 0.0).astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if lost[a:b].any():
+            start[a:b] = q[a:b]
+    if np.array_equal(start, q):
+        return q, inside
+    return start, depth_after(skel, inside, q, start, root, side)
+
+
+def swivel_plan(
+    depth: FloatArray,
+    per_frame: int,
+    free_start: bool,
+    free_end: bool,
+    unturned: np.ndarray | None = None,
+) -> FloatArray:
+    """(W,) the elbow's turn per frame, one of ``SWIVEL_TURNS``, given how deep each turn
+    leaves the forearm in each frame (W, G): the least total depth (plus ``SWIVEL_PRICE`` per
+    radian turned) over the run, the turn changing by at most ``per_frame`` grid steps between
+    two frames (a person's joint speed), and 0 at the run's ends unless they are the motion's
+    own (dynamic programming, Viterbi: the best path through the grid, exact). ``unturned``
+    (W,): frames that keep no turn (a straight arm: a turn there would be a twist of the whole
+    arm, all at once where it bends)."""
+    w, g = depth.shape
+    zero = int(np.flatnonzero(SWIVEL_TURNS == 0.0)[0])
+    cost = np.maximum(depth, 0.0) + SWIVEL_PRICE * np.abs(SWIVEL_TURNS)[None, :]
+    if unturned is not None:
+        cost[np.ix_(unturned, np.arange(g) != zero)] = np.inf
+    # moves tried in this order: ties keep the turn it had, then the smaller change
+    moves = [0] + [m for j in range(1, per_frame + 1) for m in (-j, j)]
+    acc = cost[0].copy()
+    if not free_start:
+        acc[np.arange(g) != zero] = np.inf
+    back = np.zeros((w, g), dtype=np.int64)
+    cols = np.arange(g)
+    for i in range(1, w):
+        cand = np.full((len(moves), g), np.inf)
+        for m_i, m in enumerate(moves):  # reached at column c from column c - m
+            lo, hi = max(0, m), min(g, g + m)
+            cand[m_i, lo:hi] = acc[lo - m : hi - m]
+        pick = np.argmin(cand, axis=0)
+        back[i] = cols - np.asarray(moves)[pick]
+        acc = cand[pick, cols] + cost[i]
+    j = zero if not free_end and np.isfinite(acc[zero]) else int(np.argmin(acc))
+    path = np.empty(w, dtype=np.int64)
+    for i in range(w - 1, -1, -1):
+        path[i] = j
+        j = back[i, j]
+    return SWIVEL_TURNS[path]
 
 
 def held_in_time(
@@ -243,32 +371,73 @@ def held_in_time(
     )
     ok &= (deeper <= HELD_DEEPER) & (np.abs(moved - seed).max(axis=1) <= HELD_SEED_TURN)
     out[rows[ok]] = moved[ok]
-    return worse_runs_undone(q, solved, out, t)
+    return worse_runs_undone(q, solved, out, t, CORRECTED_JOINT_SPEED)
 
 
-def worse_runs_undone(
-    q: FloatArray, before: FloatArray, after: FloatArray, t: FloatArray
+def flips_evened(
+    skel: Skeleton,
+    q: FloatArray,
+    solved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    t: FloatArray,
+    held: np.ndarray,
+    slack: float = GIVE_BACK_SLACK,
 ) -> FloatArray:
-    """``after`` with each run of frames it changed from ``before`` given back where its
-    fastest step over ``CORRECTED_JOINT_SPEED`` (and over the motion ``q``'s own), from the
-    frame before the run to the frame after it, is larger than ``before``'s: putting a held
-    hand back can turn an arm the other way, and a widening must not make a step."""
-    changed = (after != before).any(axis=1)
-    if not changed.any():
-        return after
-    room = np.maximum(np.abs(np.diff(q, axis=0)), (CORRECTED_JOINT_SPEED * np.diff(t))[:, None])
-
-    def excess(poses: FloatArray) -> FloatArray:
-        return (np.abs(np.diff(poses, axis=0)) - room).max(axis=1)  # (N - 1,)
-
-    was, now = excess(before), excess(after)
-    out = after.copy()
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], changed.astype(int), [0]])))
+    """``solved`` (the corrected frames ``q``) where each run of corrected frames with a
+    ``held`` frame (N,) in it that steps more than ``slack`` (``GIVE_BACK_SLACK``) over
+    ``CORRECTED_JOINT_SPEED`` (beyond the motion's own step: a flip between two ways out, not
+    a fast turn) takes its correction widened in time (``speed_limited``: started earlier,
+    let go later), or averaged over the run (``_averaged``: a ramp through it), or else the
+    largest of ``FLIP_SHARES`` of it, the hand put back on its pose (``hand_restored``), the
+    first that flips nowhere and goes no deeper than the run given back; else the run is given
+    back (``q``: what it leaves inside, verify reports, MT0514)."""
+    flipped = (
+        worse_runs_undone(q, q, solved, t, CORRECTED_JOINT_SPEED, held, slack) != solved
+    ).any(axis=1)
+    if not flipped.any():
+        return solved
+    out = solved.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flipped.astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=True):
-        span = slice(max(a - 1, 0), min(b, len(was)))  # the steps into, within and out of it
-        if now[span].max() > max(was[span].max(), 0.0) + 1e-9:
-            out[a:b] = before[a:b]
+        correction = np.zeros_like(q)
+        correction[a:b] = solved[a:b] - q[a:b]
+        # the hands' sites to keep: where they are (the orientation the solve yielded flipped
+        # with the arm: it follows the seed)
+        kept = out.copy()
+        out[a:b] = q[a:b]  # given back, unless one of these evens it out
+        wide = speed_limited(q, correction, skel.lower, skel.upper, t, CORRECTED_JOINT_SPEED)
+        spread = np.flatnonzero((wide != 0.0).any(axis=1))
+        seeds = []  # (frames, their correction)
+        if spread.size:
+            seeds.append((slice(spread[0], spread[-1] + 1), wide[spread[0] : spread[-1] + 1]))
+        seeds.append((slice(a, b), _averaged(correction[a:b])))
+        seeds += [(slice(a, b), share * correction[a:b]) for share in FLIP_SHARES]
+        for span, seed in seeds:
+            sub_root = (root[0][span], root[1][span])
+            seed_q = skel.clip(q[span] + seed)
+            put, ok = hand_restored(skel, seed_q, kept[span], sub_root, side, turn=False)
+            depth = np.maximum(penetration(skel, out[span], sub_root, side), 0.0)
+            if not ok.all() or (penetration(skel, put, sub_root, side) > depth + EPS).any():
+                continue
+            candidate = out.copy()
+            candidate[span] = put
+            again = worse_runs_undone(q, q, candidate, t, CORRECTED_JOINT_SPEED, held, slack)
+            if np.array_equal(again[span], put):
+                out[span] = put
+                break
     return out
+
+
+def _averaged(run: FloatArray) -> FloatArray:
+    """A run of corrections (n, D) averaged over ``SWING_SMOOTH`` frames each side, twice (a
+    triangle: no corners), fading to nothing past its ends: a jump becomes a ramp."""
+    width = 2 * SWING_SMOOTH + 1
+    padded = np.pad(run, ((width, width), (0, 0)))
+    kernel = np.ones(width) / width
+    for _ in range(2):
+        padded = np.apply_along_axis(np.convolve, 0, padded, kernel, mode="same")
+    return padded[width:-width]
 
 
 def hand_restored(

@@ -337,6 +337,42 @@ def speed_limited(
     return out
 
 
+def worse_runs_undone(
+    q: FloatArray,
+    before: FloatArray,
+    after: FloatArray,
+    t: FloatArray,
+    speed: float,
+    only: np.ndarray | None = None,
+    slack: float = 0.0,
+) -> FloatArray:
+    """``after`` (a correction of the frames ``q``) with each run of frames it changed from
+    ``before`` given back where its fastest step over ``speed`` (rad/s, and over the motion
+    ``q``'s own), from the frame before the run to the frame after it, is larger than
+    ``before``'s: a correction may not make a step a person would not. ``only`` (N,): the runs
+    with a frame in it alone (the others stay ``after``'s); ``slack``: the share of ``speed``
+    a run's step may go over its room before it is given back."""
+    changed = (after != before).any(axis=1)
+    if not changed.any():
+        return after
+    room = np.maximum(np.abs(np.diff(q, axis=0)), (speed * np.diff(t))[:, None])
+    over = slack * speed * np.diff(t)  # (N - 1,)
+
+    def excess(poses: FloatArray) -> FloatArray:
+        return (np.abs(np.diff(poses, axis=0)) - room).max(axis=1)  # (N - 1,)
+
+    was, now = excess(before), excess(after)
+    out = after.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], changed.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if only is not None and not only[a:b].any():
+            continue
+        span = slice(max(a - 1, 0), min(b, len(was)))  # the steps into, within and out of it
+        if (now[span] - over[span]).max() > max(was[span].max(), 0.0) + 1e-9:
+            out[a:b] = before[a:b]
+    return out
+
+
 def clamped(c: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray) -> None:
     """``c`` (N, D) with each change between frames brought within ``[lo, hi]``, in place:
     forward, a frame not ``keep`` goes at most the allowed change from its predecessor; then

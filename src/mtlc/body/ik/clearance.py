@@ -43,6 +43,7 @@ from ..capsules import (
     clearance_directions,
     limb_radius,
     measured_points,
+    segment_clearance,
     side_limbs,
 )
 from ..kinematics import (
@@ -77,6 +78,7 @@ MAX_ROWS = 600  # rows solved at most in one call (10 s of 60 fps frames); more:
 SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
 FIRM_HAND_TOL = 5e-4  # m: a kept hand the firm solve may move (contact and grip: 1 mm)
 FIRM_TURN = 0.35  # rad a dof may turn in the firm solve: more swings between frames
+SWIVEL_STAGE = np.radians(15.0)  # rad of an elbow's turn solved at a time (``swiveled``)
 
 
 def _residuals(
@@ -397,6 +399,69 @@ def _swivel_targets(
     k = w - s
     k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
     return rotate_about(s, k, e - s, np.cos(angle), np.sin(angle))
+
+
+def swivel_clearance(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    turns: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """(N, G) how far the ``side`` forearm goes into the trunk or a thigh (``clearance``'s
+    measure, deepest sample) with its elbow turned by each of ``turns`` (G,) about the line
+    from the shoulder to the wrist and the hand where it is: the one motion of an arm whose
+    hand holds its pose, measured on the turned elbow without solving the arm for it; and (N,)
+    how far the elbow is from that line (m: near a straight arm, a turn is a twist of the
+    whole arm that moves nothing)."""
+    pose = forward(skel, q, *root, with_axes=False)
+    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
+    k = w - s
+    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    cos, sin = np.cos(turns)[None, :, None], np.sin(turns)[None, :, None]
+    elbows = rotate_about(s[:, None], k[:, None], (e - s)[:, None], cos, sin)  # (N, G, 3)
+    forearm = next(limb for limb in side_limbs(side) if limb.start == f"{side}_elbow")
+    wrists = np.broadcast_to(w[:, None], elbows.shape)
+    offset = np.linalg.norm(np.cross(e - s, k), axis=1)
+    return segment_clearance(skel, pose, elbows, wrists, limb_radius(skel, forearm)), offset
+
+
+def swiveled(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    turns: FloatArray,
+    keep: float,
+    max_iter: int = MAX_ITER,
+) -> FloatArray:
+    """``q`` (N, D) with the ``side`` elbow turned by ``turns`` (N,) about the line from the
+    shoulder to the wrist, the hand's pose held with weight ``keep`` (``_lm`` toward the turned
+    elbow, as ``keep_clear``'s swivel seeds); a row turned by 0 comes back as it is."""
+    out = np.array(q, dtype=float)
+    rows = np.flatnonzero(turns != 0.0)
+    if rows.size == 0:
+        return out
+    root_n = (root[0][rows], root[1][rows])
+    q0 = out[rows]
+    pose = forward(skel, q0, *root_n, with_axes=False)
+    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
+    k = w - s
+    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    pb = _Problem(root_n, _hand_points(skel, pose, side), np.full(len(rows), keep), q0)
+    dofs = arm_dofs(skel, side)
+    # the turn taken in stages of at most ``SWIVEL_STAGE``, each solved from the last: the
+    # solution follows the turn from the frame's own pose, so two neighbouring frames turned
+    # alike end alike (one solve of a large turn fell into either of two wrist twists)
+    stages = max(1, int(np.ceil(np.abs(turns[rows]).max() / SWIVEL_STAGE)))
+    cur = q0
+    for k_stage in range(1, stages + 1):
+        a = (turns[rows] * k_stage / stages)[:, None]
+        target = rotate_about(s, k, e - s, np.cos(a), np.sin(a))
+        cur, _ = _lm(skel, cur, side, replace(pb, elbow=target), dofs, max_iter,
+                     pose if k_stage == 1 else None)  # fmt: skip
+    out[rows] = cur
+    return out
 
 
 def keep_clear(

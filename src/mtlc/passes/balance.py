@@ -77,7 +77,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import REPORT_TOL, closed_during, on_site
+from mtlc.passes.hold import REPORT_TOL, closed_during, last_opening, on_site
 from mtlc.passes.joint_speed import speed_limited
 from mtlc.passes.profile import minimum_jerk
 
@@ -161,12 +161,12 @@ def pin_windows(
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf
-            if (
-                reached_only
-                and float(seg.result.get("distance", 0.0)) > REPORT_TOL
-                and not closed_during(hand_grips, seg.start, end)
-            ):
-                continue
+            if reached_only and float(seg.result.get("distance", 0.0)) > REPORT_TOL:
+                if not closed_during(hand_grips, seg.start, end):
+                    continue
+                # holding its part, not resting on the site: free once it lets go (a panel
+                # placed short of the floor pinned the hand there through a stand and a squat)
+                end = last_opening(hand_grips, seg.start, end)
             lo.append(seg.start - 1e-9)
             hi.append(end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))

@@ -86,6 +86,22 @@ def closed_during(grips: list[Segment], lo: float, hi: float) -> bool:
     )
 
 
+def last_opening(grips: list[Segment], lo: float, hi: float) -> float:
+    """When, in ``[lo, hi)``, the hand's grip opens for the last time after being closed in
+    it (``hi`` if it is closed at ``hi`` or never closed in it): where a hand that holds a part
+    short of its site lets go of it."""
+    closed, out = _closed_at(grips, lo), hi
+    for g in grips:
+        if not lo - EPS <= g.start < hi - EPS:
+            continue
+        if _is_open(g) and closed:
+            out = g.start
+        elif not _is_open(g):
+            out = hi
+        closed = not _is_open(g)
+    return out
+
+
 def carried_postures(ir: MotionIR) -> dict[str, list[Segment]]:
     """Per arm track, the whole-body postures (squat, kneel, stand, bend; not a hand's twist)
     through which its hand carries the part it holds, so the part goes with the body.

@@ -40,6 +40,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.balance import (
+    CORRECTED_JOINT_SPEED,
     FEET_SITES,
     HANDS,
     MARGIN,
@@ -51,6 +52,7 @@ from mtlc.passes.balance import (
     restore_contacts,
 )
 from mtlc.passes.context import PassContext
+from mtlc.passes.joint_speed import worse_runs_undone
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
@@ -205,7 +207,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         frames.q[:] = arms_in_time(skel, q0, frames.q, t, kept)
     worse = _worse_standing_runs(ir, frames, rows, q0, root0)
     if worse.size:
+        q1, root1 = frames.q.copy(), frames.root_position.copy()
         balance_frames(ir, frames, worse)
+        # a run the balance makes step faster than a person moves is given back, root too (a
+        # trunk leaned to its limit in one frame: the lumbar 25 -> -30 deg, a squat after a
+        # kneel, tests/data/pose/p01, female P5); what it leaves outside, verify reports
+        kept = worse_runs_undone(q1, q1, frames.q, t, CORRECTED_JOINT_SPEED)
+        back = np.flatnonzero((kept != frames.q).any(axis=1))
+        frames.q[back], frames.root_position[back] = q1[back], root1[back]
     return ir
 
 

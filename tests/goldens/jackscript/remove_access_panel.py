@@ -2675,27 +2675,30 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.6, {
         'right_shoulder': (-37.767, 0.321, 11.592), 'right_elbow': (110.546, 26.668),
-        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.268, 8.749, 56.581),
-        'left_elbow': (102.764, 6.999), 'left_wrist': (-70.0, 6.317),
+        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.265, 8.746, 56.575),
+        'left_elbow': (102.754, 7.026), 'left_wrist': (-70.0, 6.325),
     })
     human.KeyJoints(53.7, {
         'right_shoulder': (-40.293, -1.555, 14.427), 'right_elbow': (110.616, 26.535),
-        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-2.258, 13.713, 57.737),
-        'left_elbow': (104.407, 10.547), 'left_wrist': (-70.0, 9.981),
+        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-2.264, 13.707, 57.724),
+        'left_elbow': (104.393, 10.592), 'left_wrist': (-70.0, 9.986),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.730065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=53.730065, duration=0.072)
-    human.KeyJoints(53.8, {'left_shoulder': (-1.409, 14.735, 59.154)})
+    human.KeyJoints(53.8, {
+        'left_shoulder': (-1.402, 14.743, 59.166), 'left_elbow': (104.837, 9.997),
+        'left_wrist': (-70.0, 9.229),
+    })
     human.KeyRoot(53.802065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(53.802065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-1.301, 14.844, 59.3), 'left_elbow': (104.816, 10.015),
-        'left_wrist': (-70.0, 9.284), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-1.304, 14.84, 59.292), 'left_elbow': (104.809, 10.048),
+        'left_wrist': (-70.0, 9.277), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

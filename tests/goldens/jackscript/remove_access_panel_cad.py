@@ -2667,15 +2667,15 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(53.2, {
         'right_shoulder': (-15.58, 9.225, 10.055), 'right_elbow': (100.147, 23.132),
-        'right_wrist': (-11.525, -10.437), 'left_shoulder': (7.032, -5.044, 23.593),
-        'left_elbow': (88.754, 11.494), 'left_wrist': (-10.754, 10.544),
+        'right_wrist': (-11.525, -10.437), 'left_shoulder': (7.288, -4.417, 24.439),
+        'left_elbow': (88.753, 10.857), 'left_wrist': (-11.586, 10.354),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
         'right_shoulder': (-19.628, 6.877, 13.337), 'right_elbow': (103.21, 23.155),
-        'right_wrist': (-11.309, -9.624), 'left_shoulder': (0.993, -1.782, 22.888),
-        'left_elbow': (95.42, 11.698), 'left_wrist': (-11.967, 12.632),
+        'right_wrist': (-11.309, -9.624), 'left_shoulder': (1.226, -1.182, 23.633),
+        'left_elbow': (95.419, 11.186), 'left_wrist': (-12.757, 12.448),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
@@ -2683,7 +2683,7 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
     human.KeyJoints(53.4, {
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
-        'left_shoulder': (0.506, -1.597, 22.753), 'left_elbow': (95.961, 11.778),
+        'left_shoulder': (0.764, -0.937, 23.571), 'left_elbow': (95.961, 11.215),
     })
     human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(53.433901, {
@@ -2691,8 +2691,8 @@ def remove_access_panel_cad():
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'right_wrist': (-11.305, -9.547), 'left_clavicle': (-2.48, 4.095),
-        'left_shoulder': (0.506, -1.597, 22.751), 'left_elbow': (95.961, 11.791),
-        'left_wrist': (-11.968, 12.811), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (0.764, -0.937, 23.571), 'left_elbow': (95.961, 11.215),
+        'left_wrist': (-12.846, 12.609), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -585,26 +585,26 @@ def replace_fuel_filter_cad():
         'left_wrist': (-45.586, 14.812),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (41.907, 11.723, 11.836),
-        'left_elbow': (37.983, 50.464), 'left_wrist': (-48.79, 15.209),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.073, 15.259, 23.853),
+        'left_elbow': (37.985, 42.698), 'left_wrist': (-51.738, 10.312),
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
-        'left_shoulder': (27.81, 17.521, 9.858), 'left_elbow': (62.836, 43.598),
-        'left_wrist': (-60.673, 8.161),
+        'left_shoulder': (28.784, 24.858, 22.777), 'left_elbow': (65.303, 39.509),
+        'left_wrist': (-61.058, -2.759),
     })
     human.KeyJoints(10.8, {
         'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
-        'left_shoulder': (7.255, 27.93, 1.289), 'left_elbow': (88.678, 40.141),
-        'left_wrist': (-59.844, -9.223),
+        'left_shoulder': (7.897, 28.327, 1.218), 'left_elbow': (86.182, 46.878),
+        'left_wrist': (-63.125, -8.082),
     })
     human.KeyJoints(10.9, {
-        'left_shoulder': (-7.22, 22.747, -31.345), 'left_elbow': (95.002, 40.115),
-        'left_wrist': (-59.524, 13.846),
+        'left_shoulder': (-12.81, 31.255, -23.267), 'left_elbow': (96.01, 46.176),
+        'left_wrist': (-65.452, -4.681),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-21.565, 31.492, -49.999), 'left_elbow': (96.818, 35.721),
-        'left_wrist': (-62.343, 11.674),
+        'left_shoulder': (-22.754, 32.153, -49.461), 'left_elbow': (96.983, 35.696),
+        'left_wrist': (-62.721, 10.473),
     })
     human.KeyJoints(11.1, {
         'left_shoulder': (-29.742, 38.428, -65.147), 'left_elbow': (97.366, 32.816),
@@ -651,8 +651,8 @@ def replace_fuel_filter_cad():
         'spine_lumbar': (59.873, 7.797, -8.008), 'spine_thoracic': (0.446, -3.95, -23.322),
         'neck': (35.0, -5.152, 66.26), 'right_shoulder': (31.521, -0.283, -78.769),
         'right_elbow': (34.819, -32.582), 'right_wrist': (66.576, 15.137),
-        'left_shoulder': (-34.525, -2.729, -23.481), 'left_elbow': (132.874, 31.049),
-        'left_wrist': (-67.186, 8.576),
+        'left_shoulder': (-35.441, -0.591, -21.921), 'left_elbow': (132.855, 34.301),
+        'left_wrist': (-69.53, 4.399),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.071274, duration=0.451565)

@@ -117,6 +117,27 @@ _SMART_OPEN = "\u201c\u201e\u201f"  # “ „ ‟
 _OPENER = {")": "(", "]": "[", "}": "{"}
 
 
+def _opened(brackets: list[str], still_open: dict[str, int], opener: str) -> bool:
+    """``opener`` pushed on the open brackets; whether they nest at most ``MAX_NESTING``."""
+    brackets.append(opener)
+    still_open[opener] += 1
+    return len(brackets) <= MAX_NESTING
+
+
+def _closed(brackets: list[str], still_open: dict[str, int], opener: str) -> bool:
+    """The innermost open ``opener`` closed, with whatever is open inside it (a `}` also ends
+    a `(` left open in its block); whether it was the innermost bracket (plainly nested)."""
+    if brackets and brackets[-1] == opener:
+        brackets.pop()
+        still_open[opener] -= 1
+        return True
+    if still_open[opener]:
+        while (popped := brackets.pop()) != opener:
+            still_open[popped] -= 1
+        still_open[opener] -= 1
+    return False
+
+
 def _smart_close(text: str, pos: int) -> int:
     """The end of a string in typographic quotes (“...”) opened at ``pos``, or -1."""
     close = text.find("\u201d", pos + 1, pos + 200)  # C speed: a line of “ stays linear
@@ -303,22 +324,12 @@ def _plain_tokens(
                 ttype = punctuation[value]
             elif kind == _OPEN:
                 ttype = punctuation[value]
-                brackets.append(value)
-                still_open[value] += 1
-                if len(brackets) > MAX_NESTING:
+                if not _opened(brackets, still_open, value):
                     plain = False
             elif kind == _CLOSE:
                 ttype = punctuation[value]
-                opener = opener_of[value]
-                if brackets and brackets[-1] == opener:
-                    brackets.pop()
-                    still_open[opener] -= 1
-                else:
+                if not _closed(brackets, still_open, opener_of[value]):
                     plain = False
-                    if still_open[opener]:
-                        while (popped := brackets.pop()) != opener:
-                            still_open[popped] -= 1
-                        still_open[opener] -= 1
             elif kind == _NUMBER:
                 ttype = "NUMBER" if value != "." else "DOT"  # `.5` is a number, `.` punctuation
             elif kind == _NL:
@@ -428,21 +439,10 @@ def _tokenize(
                 value = text[start:end]
                 ttype = punctuation[value]
                 if value in "([{":
-                    brackets.append(value)
-                    still_open[value] += 1
-                    if len(brackets) > MAX_NESTING:
+                    if not _opened(brackets, still_open, value):
                         plain = False
-                elif value in ")]}":
-                    opener = _OPENER[value]
-                    if brackets and brackets[-1] == opener:
-                        brackets.pop()
-                        still_open[opener] -= 1
-                    else:
-                        plain = False
-                        if still_open[opener]:
-                            while (popped := brackets.pop()) != opener:
-                                still_open[popped] -= 1
-                            still_open[opener] -= 1
+                elif value in ")]}" and not _closed(brackets, still_open, _OPENER[value]):
+                    plain = False
             elif (
                 kind == "NAME"
                 and (end == n or text[end].isascii())  # else the word may go on (_name_end)
@@ -544,15 +544,10 @@ def _tokenize(
                     ttype = punctuation[value]
                     plain = False  # a look-alike (reported): the parser walks the brackets
                     if value in "([{":
-                        brackets.append(value)
-                        still_open[value] += 1
+                        _opened(brackets, still_open, value)
                     elif value in ")]}" and brackets:
                         # a `}` also ends any ( or [ left open inside its block
-                        opener = _OPENER[value]
-                        if still_open[opener]:
-                            while (popped := brackets.pop()) != opener:
-                                still_open[popped] -= 1
-                            still_open[opener] -= 1
+                        _closed(brackets, still_open, _OPENER[value])
                 elif kind in ("NUMBER", "STRING"):
                     ttype = kind
                 elif kind == "SMARTSTRING":

@@ -4,7 +4,7 @@
 line from a grid, given how deep each turn leaves the forearm: the least total depth, the turn
 changing by at most a few grid steps between frames. Before it, each frame's solve took the way
 out nearest its own pose, and the way round a thigh flipped sides between two frames: the rack
-module's low latch (bench/procedures/rack_module.mtask, female P95) turned the left shoulder
+module's low latch (tests/data/clearance/rack_module.mtask, bench/procedures' copy, female P95) turned the left shoulder
 56 deg in one output frame.
 """
 
@@ -108,7 +108,9 @@ def test_the_plan_is_the_best_path_through_the_grid(
 
 def test_no_turn_measures_the_forearm_as_clearance_does() -> None:
     # the turned elbow's depth at no turn is the clearance pass's own measure of the forearm
-    (timeline,) = run_frontend([ROOT / "bench" / "procedures" / "rack_module.mtask"]).timelines
+    (timeline,) = run_frontend(
+        [ROOT / "tests" / "data" / "clearance" / "rack_module.mtask"]
+    ).timelines
     timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 95))
     ir = run_motion(timeline, DiagnosticSink(), until="carry")
     assert ir.frames is not None
@@ -126,7 +128,9 @@ def test_no_turn_measures_the_forearm_as_clearance_does() -> None:
 
 @pytest.fixture(scope="module")
 def rack() -> tuple[object, object]:
-    (timeline,) = run_frontend([ROOT / "bench" / "procedures" / "rack_module.mtask"]).timelines
+    (timeline,) = run_frontend(
+        [ROOT / "tests" / "data" / "clearance" / "rack_module.mtask"]
+    ).timelines
     timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 95))
     before = run_motion(timeline, DiagnosticSink(), until="carry")
     after = run_motion(timeline, DiagnosticSink(), until="clearance")

@@ -214,8 +214,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         # is the fallback there, clear where a turn can clear the arm, and that slowly);
         # elsewhere no flip (a fuel filter's bowl carried past the thigh turned the wrist
         # 26 deg in one output frame where the solve yielded the hand's orientation)
-        planned = (start != q).any(axis=1)
-        result = flips_evened(skel, start, result, root, side, frames.time, planned, PLAN_SLACK)
+        if start is not q:
+            planned = (start != q).any(axis=1)
+            result = flips_evened(skel, start, result, root, side, frames.time, planned, PLAN_SLACK)
         result = flips_evened(skel, start, result, root, side, frames.time, held)
         frames.q = result
         for other in sides[k + 1 :]:

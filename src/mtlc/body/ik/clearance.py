@@ -395,10 +395,19 @@ def _swivel_targets(
     """(N, 3) the elbow turned by ``angle`` about the line from the shoulder to the wrist: the
     arm's one free motion when the hand stays where it is."""
     pose = forward(skel, q, root[0], root[1], with_axes=False)
+    s, e, _, k = _swivel_line(skel, pose, side)
+    return rotate_about(s, k, e - s, np.cos(angle), np.sin(angle))
+
+
+def _swivel_line(
+    skel: Skeleton, pose: Pose, side: str
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(N, 3) each: the shoulder, elbow and wrist of the ``side`` arm, and the unit vector from
+    the shoulder to the wrist (the line the elbow turns about when the hand stays put)."""
     s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
     k = w - s
     k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
-    return rotate_about(s, k, e - s, np.cos(angle), np.sin(angle))
+    return s, e, w, k
 
 
 def swivel_clearance(
@@ -415,9 +424,7 @@ def swivel_clearance(
     how far the elbow is from that line (m: near a straight arm, a turn is a twist of the
     whole arm that moves nothing)."""
     pose = forward(skel, q, *root, with_axes=False)
-    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
-    k = w - s
-    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    s, e, w, k = _swivel_line(skel, pose, side)
     cos, sin = np.cos(turns)[None, :, None], np.sin(turns)[None, :, None]
     elbows = rotate_about(s[:, None], k[:, None], (e - s)[:, None], cos, sin)  # (N, G, 3)
     forearm = next(limb for limb in side_limbs(side) if limb.start == f"{side}_elbow")
@@ -445,9 +452,7 @@ def swiveled(
     root_n = (root[0][rows], root[1][rows])
     q0 = out[rows]
     pose = forward(skel, q0, *root_n, with_axes=False)
-    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
-    k = w - s
-    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    s, e, _, k = _swivel_line(skel, pose, side)
     pb = _Problem(root_n, _hand_points(skel, pose, side), np.full(len(rows), keep), q0)
     dofs = arm_dofs(skel, side)
     # the turn taken in stages of at most ``SWIVEL_STAGE``, each solved from the last: the

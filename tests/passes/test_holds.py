@@ -224,3 +224,34 @@ def test_a_hand_that_let_go_is_free_and_its_fingertips_stay_above_the_floor(
     held = on_site(ir, fr.time)["r_hand"]
     assert held[(fr.time > to.start) & (fr.time < to.end)].all()
     assert not held[fr.time > to.end + 1.0].any()  # let go: free for the squat
+
+
+def _faded(until: float) -> tuple[np.ndarray, np.ndarray]:
+    from mtlc.body.skeleton import build_manikin
+    from mtlc.ir.model import Frames
+    from mtlc.passes.hold import _fade
+
+    skel = build_manikin("gb10000_1988", "male", 50)
+    t = np.arange(0.0, 2.0, 1 / 60)
+    n = t.size
+    frames = Frames(
+        60.0, t, np.zeros((n, 3)), np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, skel.n_dofs))
+    )
+    delta = np.zeros(skel.n_dofs)
+    delta[skel.dof_index("r_shoulder_flex")] = 0.3
+    _fade(skel, frames, 0.2, 0.5, delta, until)  # kept from 0.2 s, let go from 0.5 s
+    return t, frames.q[:, skel.dof_index("r_shoulder_flex")]
+
+
+def test_a_holds_correction_fades_from_rest_to_rest() -> None:
+    # a linear ramp started the arm at its full rate in the frame the hold ended: a move that
+    # left from rest there went 18 cm/s in its first frame (issue 19)
+    t, q = _faded(np.inf)
+    steps = np.abs(np.diff(q))
+    assert q[(t > 0.2) & (t < 0.5)] == pytest.approx(0.3)  # kept until the hold ends
+    assert steps[np.searchsorted(t, 0.5)] < 0.1 * steps.max()  # starts from rest
+    assert q[-1] == 0.0 and steps[-5:].max() == 0.0
+    # a next hold that starts before the ramp would end: the ramp ends there, not cut off by it
+    t, q = _faded(0.7)
+    assert np.all(q[t >= 0.7 - 1e-9] == 0.0)
+    assert np.abs(np.diff(q[t > 0.3])).max() < 0.3 / 4

@@ -49,6 +49,7 @@ REPORT_TOL = 1e-3  # m: further than this on a frame, the hand has let go
 FIX_FROM = 5e-5  # m: frames already this close are left alone
 FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
 FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
+PEAK_RATE = 1.875  # a minimum-jerk ramp's fastest rate over its mean (Flash & Hogan 1985)
 EPS = 1e-6
 # s into a whole-body posture a free hand (no grip closed) stays on the site it touched: the
 # frame a user receives at the end of its contact (the next output frame, up to 1/10 s later)
@@ -72,7 +73,7 @@ def _is_open(seg: Segment) -> bool:
     return seg.kind == "grip" and seg.goal.params.get("state") == "open"
 
 
-def _closed_at(grips: list[Segment], t: float) -> bool:
+def closed_at(grips: list[Segment], t: float) -> bool:
     """Whether the hand's last grip event that starts before ``t`` closed it."""
     before = [g for g in grips if g.start < t - EPS]
     return bool(before) and not _is_open(before[-1])
@@ -81,7 +82,7 @@ def _closed_at(grips: list[Segment], t: float) -> bool:
 def closed_during(grips: list[Segment], lo: float, hi: float) -> bool:
     """Whether the hand's grip (its ``grip`` segments, in time order) is closed at some time in
     ``[lo, hi)``: closed at ``lo``, or closing after it."""
-    return _closed_at(grips, lo) or any(
+    return closed_at(grips, lo) or any(
         not _is_open(g) for g in grips if lo - EPS <= g.start < hi - EPS
     )
 
@@ -90,7 +91,7 @@ def last_opening(grips: list[Segment], lo: float, hi: float) -> float:
     """When, in ``[lo, hi)``, the hand's grip opens for the last time after being closed in
     it (``hi`` if it is closed at ``hi`` or never closed in it): where a hand that holds a part
     short of its site lets go of it."""
-    closed, out = _closed_at(grips, lo), hi
+    closed, out = closed_at(grips, lo), hi
     for g in grips:
         if not lo - EPS <= g.start < hi - EPS:
             continue
@@ -183,7 +184,7 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
         # a hand that only touched its site (no grip closed on it) lets go when the body
         # changes posture: holding an overhead latch through a squat would stretch the arm
         # to its limit and then drop it, and pin the trunk of the reaches after it
-        free = sorted(t for t in postures if not _closed_at(grips, t))
+        free = sorted(t for t in postures if not closed_at(grips, t))
         for seg in arm:
             if seg.kind != "TO" or "stroke" in seg.goal.params:
                 continue
@@ -325,16 +326,22 @@ def _fade(
     skel: Any, frames: Frames, start: float, carry: float, delta: FloatArray, until: float
 ) -> None:
     """Keep the last frame's correction ``delta`` (n_dofs,) from ``start`` until ``carry``
-    (a carried part), then blend it out at a bounded rate, stopping at ``until``."""
+    (a carried part), then blend it out on a minimum-jerk ramp at a bounded rate, stopping at
+    ``until``. A linear ramp set the arm moving at its full rate in the frame the hold ended:
+    where a move takes the hand away from rest there, its first frame went 18 cm/s (the fuel
+    filter's cartridge, male P1, issue 19)."""
     if not np.any(delta):
         return
     t = frames.time
-    fade = max(FADE, float(np.abs(delta).max()) / FADE_RATE)
+    # the ramp's fastest rate is PEAK_RATE times its mean
+    fade = max(FADE, PEAK_RATE * float(np.abs(delta).max()) / FADE_RATE)
+    if carry < until < carry + fade:  # done by the next hold, not cut off by it
+        fade = until - carry
     stop = min(carry + fade, until)
     rows = np.flatnonzero((t >= start - EPS) & (t < stop - EPS))
     if rows.size == 0:
         return
-    w = np.clip(1.0 - (t[rows] - carry) / fade, 0.0, 1.0)
+    w = 1.0 - minimum_jerk(np.clip((t[rows] - carry) / fade, 0.0, 1.0))
     frames.q[rows] = skel.clip(frames.q[rows] + w[:, None] * delta[None])
 
 

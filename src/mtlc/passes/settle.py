@@ -28,7 +28,7 @@ from mtlc.body.ik.clearance import penetrations
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, Frames, MotionIR
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import ARM_HAND, _arm_dofs, _closed_at, on_site
+from mtlc.passes.hold import ARM_HAND, _arm_dofs, closed_at, on_site
 from mtlc.passes.profile import minimum_jerk, smooth_path
 
 TRUNK = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
@@ -189,7 +189,7 @@ def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray
     for track, hand in ARM_HAND.items():
         grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
         busy = any(s.start < end - EPS and s.end > start + EPS for s in ir.on_track(track))
-        if not busy and not _closed_at(grips, start + EPS) and not bool(held[hand][0]):
+        if not busy and not closed_at(grips, start + EPS) and not bool(held[hand][0]):
             out.append(track)
     return out
 

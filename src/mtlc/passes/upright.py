@@ -28,7 +28,7 @@ import numpy as np
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, GoalSpec, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import ARM_HAND, _closed_at, hold_spans
+from mtlc.passes.hold import ARM_HAND, closed_at, hold_spans
 from mtlc.passes.profile import minimum_jerk
 from mtlc.passes.settle import NEAR, ramp_length
 from mtlc.passes.state import TRUNK_DOFS, PoseState
@@ -72,7 +72,7 @@ def _carrying(ir: MotionIR, t: float, pinned: set[str]) -> bool:
     """A hand has a grip closed at ``t`` and is on no site: it carries a part."""
     for track, hand in ARM_HAND.items():
         grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
-        if track not in pinned and _closed_at(grips, t + EPS):
+        if track not in pinned and closed_at(grips, t + EPS):
             return True
     return False
 

@@ -56,3 +56,24 @@ def test_a_hand_short_of_its_site_is_free_once_it_lets_go(short: float) -> None:
         assert (lo[0], hi[0]) == pytest.approx((4.0, 5.0), abs=1e-6)
     else:  # on its site: it rests there until the arm's next segment
         assert (lo[0], hi[0]) == pytest.approx((4.0, 9.0), abs=1e-6)
+
+
+def body_move(start: float, kind: str = "posture") -> Segment:
+    return Segment("root", kind, start, start + 2.0, GoalSpec("root"), PROV)
+
+
+@pytest.mark.parametrize("kind", ["posture", "locomotion"])
+def test_a_resting_hand_lets_go_when_the_body_moves(kind: str) -> None:
+    # on its site with the grip open, it rests there until the body stands up or walks (kept
+    # there, a stand stretched the arm from a low filter bowl: 13 deg a frame, issue 19)
+    ir = ir_of(contact(4.0, 5.0, 0.0), body_move(7.0, kind), contact(9.0, 9.5, 0.0))
+    lo, hi = pin_windows(ir, reached_only=True)["l_hand"]
+    assert (lo[0], hi[0]) == pytest.approx((4.0, 7.0), abs=1e-6)
+    # a hand that grips what it rests on holds it through the move (a kneel holding a rail)
+    held = ir_of(grip(4.5, "closed"), contact(4.0, 5.0, 0.0), body_move(7.0, kind),
+                 contact(9.0, 9.5, 0.0))  # fmt: skip
+    lo, hi = pin_windows(held, reached_only=True)["l_hand"]
+    assert (lo[0], hi[0]) == pytest.approx((4.0, 9.0), abs=1e-6)
+    # a root hold (inspect) is no move
+    still = ir_of(contact(4.0, 5.0, 0.0), body_move(7.0, "hold"), contact(9.0, 9.5, 0.0))
+    assert pin_windows(still, reached_only=True)["l_hand"][1][0] == pytest.approx(9.0, abs=1e-6)

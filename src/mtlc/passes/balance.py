@@ -77,7 +77,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import REPORT_TOL, closed_during, last_opening, on_site
+from mtlc.passes.hold import REPORT_TOL, closed_at, closed_during, last_opening, on_site
 from mtlc.passes.joint_speed import speed_limited
 from mtlc.passes.profile import minimum_jerk
 
@@ -93,6 +93,8 @@ SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight
 # full stretch the elbow turns as the square root of the shoulder's distance to the hand, and
 # the trunk's lean peaking there bent it back 13-30 deg in a frame (issue 19)
 STRAIGHT_ELBOW = math.radians(20.0)
+LET_GO_TIME = 0.8  # s over which a hand resting on its site lets go as the body moves away
+BODY_MOVES = ("posture", "locomotion")  # the root's segments where the whole body moves away
 RESTING = 2  # a ``hands`` mask's value for a resting hand (1: pinned, 0: free)
 # the legs' contact solve gives up after 4 iterations without a 10 % gain (the IK default
 # waits 8): a leg that stalls is one at a joint's limit, whose error stays where it started
@@ -108,6 +110,7 @@ SOLVE_EVERY = 1 / 20
 # rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
+FADE_JOINT_SPEED = math.radians(120.0)
 CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
@@ -144,11 +147,15 @@ def pin_windows(
     wherever the hand is, verify's MT0511)."""
     by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
     grips: dict[str, list[Segment]] = {hand: [] for hand in HANDS}
+    moves: list[float] = []  # where the whole body changes posture or walks
     for seg in ir.segments:  # one pass over the segments for both arms
         if seg.track in by_track:
             by_track[seg.track].append(seg)
         elif seg.track in grips and seg.kind == "grip":
             grips[seg.track].append(seg)
+        elif seg.track == "root" and seg.kind in BODY_MOVES:
+            moves.append(seg.start)
+    moves.sort()
     out = {}
     for hand, track in HANDS.items():
         segs = sorted(by_track[track], key=lambda s: s.start)
@@ -167,6 +174,12 @@ def pin_windows(
                 # holding its part, not resting on the site: free once it lets go (a panel
                 # placed short of the floor pinned the hand there through a stand and a squat)
                 end = last_opening(hand_grips, seg.start, end)
+            # a hand resting on its site with its grip open lets go when the body stands up,
+            # kneels or walks: kept there, a stand stretched the arm from the low filter bowl
+            # and turned the shoulder 13 deg a frame (the fuel filter, female P1, issue 19)
+            k = bisect_left(moves, seg.end - 1e-9)
+            if k < len(moves) and moves[k] < end and not closed_at(hand_grips, moves[k]):
+                end = moves[k]
             lo.append(seg.start - 1e-9)
             hi.append(end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
@@ -201,6 +214,87 @@ def approach_windows(
                 hi.append(to[0].end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
     return out
+
+
+def departure_windows(
+    ir: MotionIR,
+    pins: dict[str, tuple[np.ndarray, np.ndarray]],
+    approaches: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of the movements that take it off its site where one of
+    its ``pins`` windows ends (``lo <= t < hi``): a TA segment on its arm track that starts
+    there, but not one that starts an approach to a contact (``approach_windows``:
+    ``approach_arms`` turns the arm's correction in over it from its first frame); or, where
+    the body stands up, kneels or walks then (``pin_windows``), the first ``LET_GO_TIME`` of
+    that."""
+
+    def starting(segs: list[Segment]) -> tuple[FloatArray, list[Segment]]:
+        segs = sorted((s for s in segs if s.end > s.start), key=lambda s: s.start)
+        return np.array([s.start - 1e-9 for s in segs]), segs
+
+    def at(starts: FloatArray, end: float) -> int | None:
+        k = int(np.searchsorted(starts, end - 1e-6))
+        return k if k < starts.size and abs(starts[k] - end) < 1e-6 else None
+
+    body = starting([s for s in ir.segments if s.track == "root" and s.kind in BODY_MOVES])
+    out = {}
+    for hand, track in HANDS.items():
+        ends = pins[hand][1] if hand in pins else np.empty(0)
+        approach = np.sort(approaches[hand][0]) if hand in approaches else np.empty(0)
+        # (a TA that ends on its site is pinned itself: ``ends_on_site``)
+        moves = starting(
+            [s for s in ir.segments if s.track == track and s.kind == "TA" and not ends_on_site(s)]
+        )
+        lo, hi = [], []
+        for end in ends:
+            if at(approach, end) is not None:
+                continue
+            if (k := at(moves[0], end)) is not None:
+                lo.append(end)
+                hi.append(moves[1][k].end - 1e-9)
+            elif (k := at(body[0], end)) is not None:
+                lo.append(end)
+                hi.append(end + min(body[1][k].end - body[1][k].start, LET_GO_TIME))
+        out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
+    return out
+
+
+def departing_arms(
+    skel: Skeleton,
+    frames: Frames,
+    q_start: FloatArray,
+    root_start: FloatArray,
+    departures: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> None:
+    """Each arm over a movement that leaves its pinned site (``departure_windows``), in
+    place, as ``approach_arms`` in reverse: the hand leaves from where its pin held it along
+    the path the pace pass planned, and takes on what the corrected trunk carries it as the
+    movement goes on (its minimum-jerk progress), solved by the shoulder and elbow from the pin's last correction let go in joint
+    space over the movement. Let go at a person's fastest joint speed (``arms_in_time``), the
+    pinned arm's correction moved the hand 27 mm in one frame at the start of a move (162 cm/s,
+    the fuel filter's cartridge carried to the drain tray, male P1): a second velocity peak and
+    an LDLJ of -10.7; let go in joint space alone, the hand rode on a trunk whose lean grew as
+    the move began (59 cm/s in its first frame, the CAD twin; issue 19)."""
+    t = frames.time
+    for hand, (lows, highs) in departures.items():
+        cols = arm_dofs(skel, hand)
+        for lo, hi in zip(lows, highs, strict=True):
+            w = np.flatnonzero((t >= lo) & (t < hi))
+            if w.size == 0 or w[0] == 0:
+                continue
+            held = frames.q[w[0] - 1, cols] - q_start[w[0] - 1, cols]
+            if not np.any(held):
+                continue
+            s = minimum_jerk((t[w] - lo) / max(hi - lo, 1e-9))[:, None]
+            own = frames.q[np.ix_(w, cols)] - q_start[np.ix_(w, cols)]
+            seed = q_start[np.ix_(w, cols)] + (1.0 - s) * held + s * own
+            # where the pin held the hand off its planned path, it leaves from there
+            last = [w[0] - 1]
+            rot = frames.root_rotation[last]
+            pinned = forward(skel, frames.q[last], frames.root_position[last], rot, with_axes=False)
+            planned = forward(skel, q_start[last], root_start[last], rot, with_axes=False)
+            off = site_positions(skel, pinned, hand) - site_positions(skel, planned, hand)
+            arm_between(skel, frames, q_start, root_start, w, hand, seed, s, offset=(1.0 - s) * off)
 
 
 def approach_arms(
@@ -242,24 +336,82 @@ def approach_arms(
             at_contact = frames.q[end, cols] - q_start[end, cols]
             s = minimum_jerk((frames.time[w] - lo) / max(frames.time[end] - lo, 1e-9))[:, None]
             turned_in = q_start[np.ix_(w, cols)] + (1.0 - s) * first + s * at_contact
-            rot = frames.root_rotation[w]
-            planned = site_positions(
-                skel, forward(skel, q_start[w], root_start[w], rot, with_axes=False), hand
-            )
-            carried = site_positions(
-                skel, forward(skel, ridden, frames.root_position[w], rot, with_axes=False), hand
-            )
-            goal = [Goal(hand, position=planned + (1.0 - s) * (carried - planned))]
-            seed = ridden
-            seed[:, cols] = np.clip(turned_in, skel.lower[cols], skel.upper[cols])
-            model = prepare(
-                skel, goal, seed, dofs=shoulder_elbow(skel, hand),
-                root_position=frames.root_position[w], root_rotation=rot,
-            )  # fmt: skip
-            res = solve_ta(
-                skel, goal, seed, model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40
-            )
-            frames.q[np.ix_(w, cols)] = res.q[:, cols]
+            # the elbow kept bent STRAIGHT_ELBOW where the contact's own solve bends it more;
+            # a contact made with a straighter arm is approached as it comes (kept short
+            # of it, the hand closed the gap in the contact's frame: 15 cm/s, male P1)
+            at_end = float(frames.q[end, skel.dof_index(f"{hand[0]}_elbow_flex")])
+            least = STRAIGHT_ELBOW if at_end >= STRAIGHT_ELBOW else 0.0
+            arm_between(skel, frames, q_start, root_start, w, hand, turned_in, 1.0 - s, least)
+
+
+def arm_between(
+    skel: Skeleton,
+    frames: Frames,
+    q_start: FloatArray,
+    root_start: FloatArray,
+    w: np.ndarray,
+    hand: str,
+    seed_arm: FloatArray,
+    ride: FloatArray,
+    least: float = 0.0,
+    offset: FloatArray | float = 0.0,
+) -> None:
+    """The arm of ``hand`` over the frames ``w``, in place: the hand where the pace pass planned
+    it (``q_start`` on ``root_start``), off that path by ``ride`` (W, 1) of what the corrected
+    trunk carries it, and by ``offset`` (W, 3), kept within the reach of the arm with its
+    elbow bent ``least``
+    (``kept_in_reach``); the shoulder and elbow solved from ``seed_arm`` (W, arm dofs), the
+    wrist keeping it."""
+    cols = arm_dofs(skel, hand)
+    rot = frames.root_rotation[w]
+    ridden = frames.q[w].copy()  # the corrected body with the arm as it was planned
+    ridden[:, cols] = q_start[np.ix_(w, cols)]
+    planned = site_positions(
+        skel, forward(skel, q_start[w], root_start[w], rot, with_axes=False), hand
+    )
+    carried = site_positions(
+        skel, forward(skel, ridden, frames.root_position[w], rot, with_axes=False), hand
+    )
+    seed = ridden
+    seed[:, cols] = np.clip(seed_arm, skel.lower[cols], skel.upper[cols])
+    wanted = planned + ride * (carried - planned) + offset
+    wanted = kept_in_reach(skel, seed, frames.root_position[w], rot, hand, wanted, least)
+    goal = [Goal(hand, position=wanted)]
+    model = prepare(
+        skel, goal, seed, dofs=shoulder_elbow(skel, hand),
+        root_position=frames.root_position[w], root_rotation=rot,
+    )  # fmt: skip
+    res = solve_ta(skel, goal, seed, model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40)
+    frames.q[np.ix_(w, cols)] = res.q[:, cols]
+
+
+def kept_in_reach(
+    skel: Skeleton,
+    q: FloatArray,
+    root_position: FloatArray,
+    root_rotation: FloatArray,
+    hand: str,
+    goal: FloatArray,
+    least: float = STRAIGHT_ELBOW,
+) -> FloatArray:
+    """``goal`` (N, 3) for ``hand``, brought toward its shoulder where reaching it would take
+    the elbow straighter than ``least`` (rad) and than it is in ``q`` (the corrected body, the
+    arm turned in from its start toward what the contact's own solve gives it, whose wrist
+    the reach keeps). At full stretch the elbow turns as the square root of the
+    shoulder's distance to the hand: a trunk leaning back under a reach and forward again at
+    the contact bent it 0 -> 15 deg in one output frame (the kneeling fuel filter, female P50,
+    issue 19). The hand stays short of its path by what the lean takes away and reaches it as
+    the lean fades at the contact. The farthest reach is measured on the arm itself with its
+    elbow at that bend: the shoulder's turn does not change it."""
+    elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
+    bent = q.copy()
+    bent[:, elbow] = np.minimum(q[:, elbow], least)
+    pose = forward(skel, bent, root_position, root_rotation, with_axes=False)
+    shoulder = pose.p[:, skel.joint_index(f"{hand[0]}_shoulder")]
+    reach = np.linalg.norm(site_positions(skel, pose, hand) - shoulder, axis=1)
+    away = goal - shoulder
+    far = np.linalg.norm(away, axis=1)
+    return shoulder + away * np.minimum(1.0, reach / np.maximum(far, 1e-12))[:, None]
 
 
 def shoulder_elbow(skel: Skeleton, hand: str) -> list[int]:
@@ -554,18 +706,21 @@ class Segments(NamedTuple):
     holding: Held
     approaches: dict[str, tuple[np.ndarray, np.ndarray]]
     busy: dict[str, tuple[np.ndarray, np.ndarray]]
+    departures: dict[str, tuple[np.ndarray, np.ndarray]]
 
 
 def read_segments(ir: MotionIR) -> Segments:
     pins = pin_windows(ir, reached_only=True)
+    approaches = approach_windows(ir, pins)
     return Segments(
         swing_spans(ir),
         walk_spans(ir),
         hand_rest_windows(ir),
         pins,
         held(ir),
-        approach_windows(ir, pins),
+        approaches,
         busy_windows(ir),
+        departure_windows(ir, pins, approaches),
     )
 
 
@@ -739,6 +894,7 @@ def balance_frames(
     t = frames.time
     q_start = frames.q.copy()
     approaching = any(lo.size for lo, _ in segs.approaches.values())
+    approaching |= any(lo.size for lo, _ in segs.departures.values())
     # the root before the corrections, for ``approach_arms`` only (24 bytes a frame)
     root_start = frames.root_position.copy() if approaching else frames.root_position
     # what depends on time only, for every frame (a few booleans a frame)
@@ -933,10 +1089,13 @@ def balance_frames(
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]
 
-    def blended(at: np.ndarray, share: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
-                                                            BoolArray]:  # fmt: skip
+    def blended(
+        at: np.ndarray, share: FloatArray, no_worse: bool = False
+    ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
         """The span's frames ``at`` (positions in ``span``) with ``share`` of their blended
-        correction, contacts restored: q, root, margin and whether the frame keeps it."""
+        correction, contacts restored: q, root, margin and whether the frame keeps it: at
+        least as balanced as its own correction, or as it was and inside the support, or
+        (``no_worse``) as it was."""
         f = span[at]
         qs = np.clip(frames.q[f] + share[:, None] * dq[f], skel.lower, skel.upper)
         rs = frames.root_position[f] + share[:, None] * dr[f]
@@ -948,8 +1107,10 @@ def balance_frames(
         ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
         ok &= lowest_point(skel, ps) >= floor_b[at]
         ms = hull_margin(hull_b.take(at), carried_com(ir, ps, t[f], segs.holding)[:, [0, 2]])
-        ok &= (ms >= np.minimum(own[f], MARGIN) - 1e-3) | (ms >= MARGIN)
-        return qs, rs, ms, ok
+        kept = (ms >= np.minimum(own[f], MARGIN) - 1e-3) | (ms >= MARGIN)
+        as_was = ms >= np.minimum(before[f], MARGIN) - 1e-3
+        kept |= as_was if no_worse else as_was & (ms >= ACCEPT_MARGIN)
+        return qs, rs, ms, ok & kept
 
     everything = np.arange(span.size)
     qb, rb, mb, fine = blended(everything, np.ones(span.size))
@@ -981,13 +1142,18 @@ def balance_frames(
     # toward such frames, refused a frame before them, left a one-frame dip of the lean that
     # swung a pinned arm 38 deg (the fuel filter female P1's left shoulder, issue 19)
     own_good = np.zeros(len(t), dtype=bool)
-    own_good[rows[good]] = True
+    # (a frame whose own correction is none counts as bare: a kneeling reach's pinned hand
+    # kept every lean from the contact's frames, and the lean stopped in one frame there)
+    moved = (q != q0).any(axis=1) | (root != root0).any(axis=1)
+    own_good[rows[good & moved]] = True
     bare = ~fine & ~own_good[span]
     share = fade_shares(t[span], bare, dq[span], dr[span], into=True)
     again = np.flatnonzero(fine & (share < 1.0))
     if again.size and bare.any():
-        q2, r2, m2, ok2 = blended(again, share[again])
-        ok2 &= m2 >= ACCEPT_MARGIN
+        # toward a frame that lost its balance they fade even where that tips them over too:
+        # kept whole, the lean stopped in one frame there (15 deg of lumbar, 28 deg of a
+        # pinned shoulder, a kneeling reach, issue 19); they are reported with it (MT0502)
+        q2, r2, m2, ok2 = blended(again, share[again], no_worse=True)
         took = again[ok2]
         qb[took], rb[took], mb[took] = q2[ok2], r2[ok2], m2[ok2]
     apply = span[fine]
@@ -996,6 +1162,7 @@ def balance_frames(
     )
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
+    failed[apply] |= (mb[fine] < ACCEPT_MARGIN) & (before[apply] < 0.0) & static[apply]
     # elsewhere a frame keeps its own correction, if it had one, as far as it differs from
     # its neighbours' no faster than a person moves (``raw_shares``): kept whole, one frame's
     # own pelvis shift and arms re-solved next to frames without it made the stand's elbows
@@ -1015,6 +1182,7 @@ def balance_frames(
     # correction at a contact's start turned in over its approach, then no joint faster than
     # a person's
     pinned_arms_on_branch(skel, frames, q_start, pins, measured.hands)
+    departing_arms(skel, frames, q_start, root_start, segs.departures)
     held_still = pins
     if approaching:
         approach_arms(skel, frames, q_start, root_start, segs.approaches)
@@ -1282,7 +1450,7 @@ def fade_shares(
 ) -> FloatArray:
     """(N,) the share of its correction each frame of a run takes: 1 where ``kept``, and
     elsewhere what is left of the nearest kept frame's correction after fading it for the time
-    between them at ``CORRECTED_JOINT_SPEED`` (joints, ``dq``) and ``CORRECTED_ROOT_SPEED``
+    between them at ``FADE_JOINT_SPEED`` (joints, ``dq``) and ``CORRECTED_ROOT_SPEED``
     (pelvis, ``dr``), whichever takes longer; 0 with no kept frame. ``into``: the other way,
     ``kept`` are the frames that take none, and each other frame's own correction fades to
     nothing at the nearest of them (1 with none)."""
@@ -1296,14 +1464,14 @@ def fade_shares(
             np.abs(t[idx[np.clip(k, 0, idx.size - 1)]] - t),
         )
         own = np.maximum(
-            np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+            np.abs(dq).max(axis=1) / FADE_JOINT_SPEED,
             np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
         )
         return np.clip(gap / np.maximum(own, 1e-9), 0.0, 1.0)
     if not kept.any():
         return np.zeros(len(t))
     size = np.maximum(
-        np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+        np.abs(dq).max(axis=1) / FADE_JOINT_SPEED,
         np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
     )  # s each frame's correction takes to fade
     idx = np.flatnonzero(kept)

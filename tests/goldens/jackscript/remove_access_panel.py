@@ -167,14 +167,14 @@ def remove_access_panel():
     human.KeyJoints(2.7, {
         'spine_lumbar': (7.139, 1.031, 1.356), 'spine_thoracic': (-2.498, -2.44, 1.432),
         'neck': (-0.585, -0.75, -26.415), 'right_clavicle': (9.708, 0.035),
-        'right_shoulder': (86.736, 15.402, 1.52), 'right_elbow': (33.601, 12.901),
-        'right_wrist': (-1.419, -24.475),
+        'right_shoulder': (86.745, 15.402, 1.519), 'right_elbow': (33.587, 12.901),
+        'right_wrist': (-1.418, -24.475),
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (10.06, 1.696, 1.151), 'spine_thoracic': (-4.875, -4.751, 1.473),
         'neck': (-0.552, -0.759, -27.539), 'right_clavicle': (27.128, 4.181),
-        'right_shoulder': (74.582, 34.572, 6.225), 'right_elbow': (33.558, 20.929),
-        'right_wrist': (-1.365, -2.109),
+        'right_shoulder': (74.573, 34.572, 6.225), 'right_elbow': (33.573, 20.929),
+        'right_wrist': (-1.366, -2.109),
     })
     human.KeyJoints(2.9, {
         'right_clavicle': (26.16, -2.665), 'right_shoulder': (72.392, 25.847, 5.237),
@@ -646,14 +646,14 @@ def remove_access_panel():
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.372, -14.925, 9.149), 'spine_thoracic': (-9.903, -5.253, 8.836),
         'neck': (1.293, -0.487, -15.469), 'head': (1.434, -0.014), 'right_clavicle': (4.823, 7.227),
-        'right_shoulder': (87.096, 8.841, 1.653), 'right_elbow': (31.533, 11.734),
-        'right_wrist': (-1.289, -29.982),
+        'right_shoulder': (87.103, 8.841, 1.653), 'right_elbow': (31.523, 11.734),
+        'right_wrist': (-1.288, -29.985),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.541, -19.777, 4.88), 'spine_thoracic': (-11.346, -9.903, 6.437),
         'neck': (3.207, -0.463, -16.404), 'head': (3.36, -0.014), 'right_clavicle': (16.913, 4.343),
-        'right_shoulder': (82.918, 14.602, 8.633), 'right_elbow': (24.528, 19.541),
-        'right_wrist': (1.893, -25.605),
+        'right_shoulder': (82.908, 14.602, 8.633), 'right_elbow': (24.543, 19.541),
+        'right_wrist': (1.892, -25.6),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.727, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
@@ -1767,16 +1767,16 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072117)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'right_shoulder': (57.269, 1.909, 10.269), 'right_elbow': (32.084, 19.477),
-        'right_wrist': (-1.046, -21.441),
+        'right_shoulder': (57.276, 1.907, 10.268), 'right_elbow': (32.078, 19.477),
+        'right_wrist': (-1.045, -21.448),
     })
     human.KeyJoints(35.2, {
-        'right_shoulder': (54.913, 1.877, 1.172), 'right_elbow': (43.927, 57.606),
+        'right_shoulder': (54.913, 1.877, 1.172), 'right_elbow': (43.926, 57.606),
         'right_wrist': (2.427, -30.0),
     })
     human.KeyJoints(35.3, {
-        'right_shoulder': (58.775, 7.2, 9.131), 'right_elbow': (52.594, 80.0),
-        'right_wrist': (22.067, -30.0),
+        'right_shoulder': (58.768, 7.202, 9.131), 'right_elbow': (52.599, 80.0),
+        'right_wrist': (22.066, -30.0),
     })
     human.KeyJoints(35.4, {
         'right_shoulder': (57.526, 5.793, 6.128), 'right_elbow': (57.999, 80.0),
@@ -2637,7 +2637,7 @@ def remove_access_panel():
     human.KeyJoints(52.9, {'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955)})
     human.KeyJoints(53.0, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
     })
@@ -2647,19 +2647,19 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=53.096726, duration=0.633339)
     human.KeyJoints(53.1, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.877, 34.973, -9.753), 'right_elbow': (91.012, 24.925),
-        'right_wrist': (-16.588, -18.209), 'left_shoulder': (88.195, -28.975, 15.118),
-        'left_elbow': (22.721, 17.987), 'left_wrist': (-0.054, -5.342),
+        'right_shoulder': (33.861, 34.971, -9.757), 'right_elbow': (91.034, 24.925),
+        'right_wrist': (-16.594, -18.207), 'left_shoulder': (88.233, -28.982, 15.117),
+        'left_elbow': (22.656, 17.987), 'left_wrist': (-0.051, -5.348),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (27.627, 32.32, -8.72), 'right_elbow': (93.584, 25.223),
-        'right_wrist': (-17.035, -17.408), 'left_shoulder': (75.688, -26.721, 20.132),
-        'left_elbow': (35.963, 16.067), 'left_wrist': (-10.282, -3.749),
+        'right_shoulder': (27.641, 32.321, -8.717), 'right_elbow': (93.565, 25.223),
+        'right_wrist': (-17.031, -17.41), 'left_shoulder': (75.654, -26.715, 20.133),
+        'left_elbow': (36.022, 16.067), 'left_wrist': (-10.285, -3.743),
     })
     human.KeyJoints(53.3, {
-        'right_shoulder': (11.316, 26.206, -7.111), 'right_elbow': (101.096, 25.841),
+        'right_shoulder': (11.316, 26.205, -7.111), 'right_elbow': (101.096, 25.841),
         'right_wrist': (-18.678, -15.662), 'left_shoulder': (53.704, -21.759, 30.219),
-        'left_elbow': (57.088, 12.074), 'left_wrist': (-30.787, -1.334),
+        'left_elbow': (57.088, 12.074), 'left_wrist': (-30.787, -1.335),
     })
     human.KeyJoints(53.4, {
         'right_shoulder': (-11.064, 17.004, -3.446), 'right_elbow': (109.957, 26.529),

@@ -169,14 +169,14 @@ def remove_access_panel_cad():
     human.KeyJoints(2.7, {
         'spine_lumbar': (6.794, 0.97, 1.355), 'spine_thoracic': (-2.244, -2.214, 1.404),
         'neck': (-0.559, -0.746, -26.419), 'right_clavicle': (10.217, 0.324),
-        'right_shoulder': (85.803, 16.166, 1.682), 'right_elbow': (34.773, 13.168),
-        'right_wrist': (-1.431, -23.896),
+        'right_shoulder': (85.812, 16.167, 1.682), 'right_elbow': (34.759, 13.168),
+        'right_wrist': (-1.43, -23.896),
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (8.599, 1.375, 1.206), 'spine_thoracic': (-3.743, -3.702, 1.404),
         'neck': (-0.508, -0.74, -27.1), 'right_clavicle': (27.454, 5.362),
-        'right_shoulder': (74.54, 35.685, 6.313), 'right_elbow': (33.116, 21.17),
-        'right_wrist': (-1.245, -1.792),
+        'right_shoulder': (74.531, 35.685, 6.313), 'right_elbow': (33.131, 21.17),
+        'right_wrist': (-1.246, -1.792),
     })
     human.KeyJoints(2.9, {
         'right_clavicle': (26.365, -1.687), 'right_shoulder': (72.383, 26.647, 5.281),
@@ -648,14 +648,14 @@ def remove_access_panel_cad():
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.09, -14.996, 9.1), 'spine_thoracic': (-10.051, -5.359, 8.809),
         'neck': (1.502, -0.506, -15.437), 'head': (1.648, -0.015), 'right_clavicle': (5.139, 7.177),
-        'right_shoulder': (86.05, 8.958, 1.795), 'right_elbow': (32.61, 11.821),
-        'right_wrist': (-1.276, -29.978),
+        'right_shoulder': (86.06, 8.958, 1.795), 'right_elbow': (32.595, 11.821),
+        'right_wrist': (-1.275, -29.984),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.013, -19.794, 4.872), 'spine_thoracic': (-11.449, -9.911, 6.537),
         'neck': (3.486, -0.476, -16.263), 'head': (3.643, -0.015),
-        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.994, 14.641, 8.707),
-        'right_elbow': (24.952, 19.639), 'right_wrist': (1.95, -25.526),
+        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.978, 14.641, 8.707),
+        'right_elbow': (24.975, 19.639), 'right_wrist': (1.949, -25.515),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.095, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
@@ -1302,20 +1302,20 @@ def remove_access_panel_cad():
     human.KeyJoints(24.3, {
         'spine_lumbar': (6.962, -13.822, 9.604), 'spine_thoracic': (-8.557, -4.49, 9.157),
         'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.72, 7.941),
-        'right_shoulder': (17.604, 33.544, -16.772), 'right_elbow': (37.499, 2.844),
-        'right_wrist': (-6.563, -4.852),
+        'right_shoulder': (17.607, 33.544, -16.771), 'right_elbow': (37.496, 2.844),
+        'right_wrist': (-6.563, -4.855),
     })
     human.KeyJoints(24.4, {
         'spine_lumbar': (7.723, -11.476, 9.76), 'spine_thoracic': (-8.704, -4.19, 9.291),
         'neck': (34.479, -2.423, -41.511), 'head': (14.445, -1.262),
-        'right_clavicle': (6.129, 9.157), 'right_shoulder': (16.103, 38.917, -10.822),
-        'right_elbow': (34.675, 8.981), 'right_wrist': (-6.273, 3.321),
+        'right_clavicle': (6.129, 9.157), 'right_shoulder': (16.106, 38.917, -10.821),
+        'right_elbow': (34.673, 8.981), 'right_wrist': (-6.272, 3.318),
     })
     human.KeyJoints(24.5, {
         'spine_lumbar': (9.645, -5.703, 10.196), 'spine_thoracic': (-9.523, -3.797, 9.695),
         'neck': (33.406, -3.164, -41.679), 'head': (13.473, -1.45),
-        'right_clavicle': (19.958, 12.221), 'right_shoulder': (13.005, 45.347, 3.094),
-        'right_elbow': (38.386, 25.674), 'right_wrist': (-9.006, 8.391),
+        'right_clavicle': (19.958, 12.221), 'right_shoulder': (12.999, 45.347, 3.092),
+        'right_elbow': (38.392, 25.674), 'right_wrist': (-9.007, 8.399),
     })
     human.KeyJoints(24.6, {
         'right_clavicle': (22.486, 8.92), 'right_shoulder': (13.207, 41.127, 5.112),
@@ -1774,20 +1774,20 @@ def remove_access_panel_cad():
     human.KeyJoints(35.1, {
         'spine_lumbar': (6.658, -14.175, 9.672), 'spine_thoracic': (-8.769, -4.686, 9.329),
         'neck': (24.036, 0.438, -5.109), 'head': (8.283, -1.198), 'right_clavicle': (2.356, 8.139),
-        'right_shoulder': (56.181, 2.633, 10.928), 'right_elbow': (32.422, 18.28),
-        'right_wrist': (-1.166, -20.604),
+        'right_shoulder': (56.191, 2.63, 10.928), 'right_elbow': (32.409, 18.28),
+        'right_wrist': (-1.165, -20.618),
     })
     human.KeyJoints(35.2, {
         'spine_lumbar': (0.714, -18.592, 10.926), 'spine_thoracic': (-13.311, -8.489, 12.712),
         'neck': (26.988, 0.065, -9.36), 'head': (11.993, -1.193),
-        'right_clavicle': (11.635, 12.561), 'right_shoulder': (51.239, 10.326, 14.88),
-        'right_elbow': (24.893, 23.851), 'right_wrist': (-0.083, -22.642),
+        'right_clavicle': (11.635, 12.561), 'right_shoulder': (51.238, 10.326, 14.88),
+        'right_elbow': (24.894, 23.851), 'right_wrist': (-0.083, -22.641),
     })
     human.KeyJoints(35.3, {
         'spine_lumbar': (-1.028, -20.0, 11.416), 'spine_thoracic': (-14.355, -9.635, 13.896),
         'neck': (27.886, -0.024, -10.49), 'head': (12.886, -1.196),
-        'right_clavicle': (19.261, 14.94), 'right_shoulder': (51.77, 12.554, 21.247),
-        'right_elbow': (23.072, 31.064), 'right_wrist': (2.255, -25.752),
+        'right_clavicle': (19.261, 14.94), 'right_shoulder': (51.761, 12.556, 21.247),
+        'right_elbow': (23.083, 31.064), 'right_wrist': (2.254, -25.74),
     })
     human.KeyJoints(35.4, {
         'right_clavicle': (12.442, 6.769), 'right_shoulder': (47.177, 4.321, 15.11),
@@ -2243,12 +2243,12 @@ def remove_access_panel_cad():
     human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
     human.KeyJoints(46.1, {
         'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321),
-        'right_shoulder': (74.319, 23.529, 2.036),
+        'right_shoulder': (74.332, 23.528, 2.036),
     })
     human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
     human.KeyJoints(46.3, {
         'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
-        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
+        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
         'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
     })
@@ -2639,21 +2639,21 @@ def remove_access_panel_cad():
     human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
         'right_shoulder': (32.834, 37.353, -9.633), 'right_elbow': (90.776, 22.837),
-        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.717, -29.213, 14.723),
-        'left_elbow': (20.484, 18.166), 'left_wrist': (0.904, -5.536),
+        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.75, -29.215, 14.722),
+        'left_elbow': (20.433, 18.166), 'left_wrist': (0.906, -5.54),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
         'right_shoulder': (29.743, 35.987, -9.048), 'right_elbow': (91.379, 22.868),
-        'right_wrist': (-12.541, -14.333), 'left_shoulder': (83.113, -28.04, 15.609),
-        'left_elbow': (27.174, 17.668), 'left_wrist': (0.211, -4.184),
+        'right_wrist': (-12.541, -14.333), 'left_shoulder': (83.102, -28.039, 15.609),
+        'left_elbow': (27.19, 17.668), 'left_wrist': (0.211, -4.183),
     })
     human.KeyJoints(52.9, {
         'right_shoulder': (19.975, 31.61, -7.106), 'right_elbow': (93.772, 22.959),
-        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.659, -24.751, 18.134),
-        'left_elbow': (43.235, 16.183), 'left_wrist': (-1.721, -0.552),
+        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.644, -24.751, 18.135),
+        'left_elbow': (43.257, 16.183), 'left_wrist': (-1.721, -0.55),
     })
     human.KeyJoints(53.0, {
         'right_shoulder': (5.318, 24.374, -3.191), 'right_elbow': (97.717, 23.079),

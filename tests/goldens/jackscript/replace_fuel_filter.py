@@ -452,39 +452,38 @@ def replace_fuel_filter():
         'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, 32.785, -0.758),
         'head': (15.0, -11.25), 'right_clavicle': (-9.802, 15.0),
         'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
-        'right_wrist': (-9.449, 1.776), 'left_clavicle': (-9.802, 15.0),
-        'left_shoulder': (25.156, 6.092, 8.516), 'left_elbow': (64.45, 17.304),
-        'left_wrist': (-3.653, 6.85),
+        'left_clavicle': (-9.802, 15.0), 'left_shoulder': (25.156, 6.092, 8.516),
+        'left_elbow': (64.45, 17.304), 'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
         'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
-        'right_shoulder': (30.252, 0.886, 11.121), 'right_elbow': (54.286, 79.958),
-        'right_wrist': (-8.801, 1.617),
+        'right_shoulder': (28.96, 0.671, 11.284), 'right_elbow': (56.95, 79.958),
+        'right_wrist': (-9.499, 1.787),
     })
     human.KeyJoints(8.2, {
         'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
-        'right_shoulder': (32.349, 3.754, 8.711), 'right_elbow': (47.033, 76.984),
-        'right_wrist': (-11.211, 2.124),
+        'right_shoulder': (28.565, 3.125, 9.187), 'right_elbow': (54.837, 76.984),
+        'right_wrist': (-13.256, 2.62),
     })
     human.KeyJoints(8.3, {
         'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (35.0, 25.451, -24.003),
-        'head': (10.824, -10.971), 'right_shoulder': (29.538, 10.952, 2.523),
-        'right_elbow': (44.184, 67.974), 'right_wrist': (-23.534, 4.862),
+        'head': (10.824, -10.971), 'right_shoulder': (26.235, 10.403, 2.939),
+        'right_elbow': (50.993, 67.974), 'right_wrist': (-25.319, 5.295),
     })
     human.KeyJoints(8.4, {
         'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
-        'right_shoulder': (22.964, 20.52, -5.758), 'right_elbow': (46.936, 55.679),
-        'right_wrist': (-42.522, 8.912),
+        'right_shoulder': (22.467, 20.438, -5.695), 'right_elbow': (47.959, 55.679),
+        'right_wrist': (-42.791, 8.977),
     })
     human.KeyJoints(8.5, {
         'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
         'right_shoulder': (21.357, 30.49, -13.792), 'right_elbow': (40.813, 44.146),
-        'right_wrist': (-56.169, 11.685),
+        'right_wrist': (-56.172, 11.685), 'left_elbow': (64.34, 17.304),
     })
     human.KeyJoints(8.6, {
         'right_shoulder': (26.361, 37.405, -17.776), 'right_elbow': (25.627, 37.021),
-        'right_wrist': (-56.401, 11.665), 'left_elbow': (64.34, 17.304),
+        'right_wrist': (-56.405, 11.665),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
@@ -502,20 +501,21 @@ def replace_fuel_filter():
     human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
     human.KeyJoints(8.9, {
         'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
-        'right_wrist': (-55.044, 11.187),
+        'right_wrist': (-55.038, 11.185),
     })
     human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.1, {
         'spine_lumbar': (60.0, 4.605, 3.656), 'spine_thoracic': (-14.996, 6.068, 14.029),
         'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
-        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
+        'right_wrist': (-55.095, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
         'left_elbow': (64.319, 17.328), 'left_wrist': (-3.679, 6.829),
     })
     human.KeyJoints(9.2, {
         'spine_lumbar': (60.0, 5.155, 2.991), 'spine_thoracic': (-14.782, 5.645, 12.458),
         'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
-        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.777, 15.0),
+        'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
+        'right_wrist': (-54.816, 11.203), 'left_clavicle': (-9.777, 15.0),
         'left_shoulder': (25.706, 6.129, 9.02), 'left_elbow': (63.166, 18.604),
         'left_wrist': (-5.718, 7.298),
     })
@@ -523,13 +523,12 @@ def replace_fuel_filter():
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
-        'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
-        'left_shoulder': (27.297, 6.302, 10.676), 'left_elbow': (59.267, 22.894),
-        'left_wrist': (-12.571, 8.874),
+        'neck': (33.754, 28.576, -42.612), 'left_shoulder': (27.297, 6.302, 10.676),
+        'left_elbow': (59.267, 22.894), 'left_wrist': (-12.571, 8.874),
     })
     human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
-        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
+        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146),
         'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
         'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
     })
@@ -573,13 +572,13 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
         'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
-        'left_shoulder': (52.255, 13.363, 19.269), 'left_elbow': (14.124, 51.573),
-        'left_wrist': (-46.194, 14.983),
+        'left_shoulder': (52.272, 13.357, 19.269), 'left_elbow': (14.098, 51.573),
+        'left_wrist': (-46.162, 14.974),
     })
     human.KeyJoints(10.3, {
         'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
-        'left_shoulder': (44.901, 15.561, 13.318), 'left_elbow': (28.254, 50.351),
-        'left_wrist': (-48.75, 15.28),
+        'left_shoulder': (44.883, 15.567, 13.317), 'left_elbow': (28.281, 50.351),
+        'left_wrist': (-48.782, 15.29),
     })
     human.KeyJoints(10.4, {
         'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
@@ -812,12 +811,12 @@ def replace_fuel_filter():
     human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
     human.KeyJoints(15.5, {
         'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
-        'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
-        'right_wrist': (-53.413, 15.296),
+        'right_shoulder': (40.86, -19.775, 0.889), 'right_elbow': (41.184, -10.0),
+        'right_wrist': (-53.801, 15.6),
     })
     human.KeyJoints(15.6, {
-        'right_shoulder': (40.145, -18.157, 0.275), 'right_elbow': (37.885, -10.0),
-        'right_wrist': (-52.356, 14.465),
+        'right_shoulder': (40.001, -17.83, 0.15), 'right_elbow': (37.219, -10.0),
+        'right_wrist': (-52.064, 14.236),
     })
     human.KeyJoints(15.7, {
         'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
@@ -839,39 +838,38 @@ def replace_fuel_filter():
     human.KeyJoints(18.8, {
         'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
         'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
-        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
-        'right_elbow': (35.037, -4.545), 'right_wrist': (-40.73, 10.834),
-        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
-        'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
+        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.368, -12.106, -4.161),
+        'right_elbow': (35.458, -4.481), 'right_wrist': (-40.976, 10.985),
+        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.293, 32.756, -64.473),
+        'left_elbow': (83.054, 28.611), 'left_wrist': (-54.222, 7.189),
     })
     human.KeyJoints(18.9, {
         'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
         'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
-        'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
-        'right_wrist': (-19.323, 5.147), 'left_clavicle': (-3.808, 5.667),
-        'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
-        'left_wrist': (-25.711, 3.4),
+        'right_shoulder': (20.337, -1.793, -12.492), 'right_elbow': (34.892, 6.917),
+        'right_wrist': (-19.423, 5.226), 'left_clavicle': (-3.808, 5.667),
+        'left_shoulder': (-10.312, 19.472, -41.08), 'left_elbow': (57.45, 22.622),
+        'left_wrist': (-25.702, 3.42),
     })
     human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
         'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
         'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
-        'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
-        'right_wrist': (-2.049, 0.569), 'left_clavicle': (-0.428, 0.603),
-        'left_shoulder': (6.609, 8.924, -22.29), 'left_elbow': (36.66, 17.797),
-        'left_wrist': (-2.734, 0.34), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'right_shoulder': (9.844, 6.511, -19.201), 'right_elbow': (34.435, 16.096),
+        'right_wrist': (-2.067, 0.587), 'left_clavicle': (-0.428, 0.603),
+        'left_shoulder': (6.582, 8.774, -22.244), 'left_elbow': (36.833, 17.799),
+        'left_wrist': (-2.735, 0.384), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
     human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.1, {
         'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
-        'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
-        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.761, 7.55, -19.913),
-        'left_elbow': (34.061, 17.189), 'left_wrist': (0.143, -0.046),
-        'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
-        'left_knee': (132.894,),
+        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.529, 7.551, -20.042),
+        'right_elbow': (34.377, 17.246), 'right_wrist': (0.108, 0.0),
+        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.699, 7.434, -19.883),
+        'left_elbow': (34.25, 17.189), 'left_wrist': (0.142, 0.0), 'right_hip': (30.865, 0.0, 0.0),
+        'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0), 'left_knee': (132.894,),
     })
     human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.2, {
@@ -883,62 +881,49 @@ def replace_fuel_filter():
     human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.3, {
         'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
-        'right_shoulder': (8.622, 7.533, -20.017), 'right_elbow': (34.289, 17.22),
-        'right_wrist': (0.068, -0.019), 'left_shoulder': (8.696, 7.521, -19.948),
-        'left_elbow': (34.204, 17.189), 'left_wrist': (0.081, -0.024),
         'right_hip': (28.486, -0.424, -0.166), 'right_knee': (130.517,),
         'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
         'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
     })
     human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
-        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.93, 10.0, 0.0),
-        'right_shoulder': (8.393, 7.123, -19.905), 'right_elbow': (35.707, 17.208),
-        'right_wrist': (-0.015, 0.314), 'left_shoulder': (7.579, 7.447, -20.084),
-        'left_elbow': (36.514, 17.189), 'left_wrist': (-0.154, 0.485),
+        'spine_lumbar': (-16.749, 20.0, 0.0), 'spine_thoracic': (-14.942, 10.0, 0.0),
         'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
         'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
         'right_toes': (86.604,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.126, 10.0, 0.0),
-        'right_shoulder': (8.11, 6.348, -19.676), 'right_elbow': (38.237, 17.195),
-        'right_wrist': (-0.133, 0.917), 'left_shoulder': (5.567, 7.363, -20.335),
-        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.566, 1.413),
+        'spine_lumbar': (-12.478, 20.0, 0.0), 'spine_thoracic': (-14.16, 10.0, 0.0),
         'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
         'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
         'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.6, (2.141, 43.633, 41.688), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-26.244, 20.0, 0.0), 'spine_thoracic': (-11.533, 10.0, 0.0),
-        'right_shoulder': (8.1, 6.147, -19.608), 'right_elbow': (38.881, 17.189),
-        'right_wrist': (-0.165, 1.072), 'left_shoulder': (5.037, 7.365, -20.414),
-        'left_elbow': (41.666, 17.188), 'left_wrist': (-0.677, 1.635),
+        'spine_lumbar': (-26.386, 20.0, 0.0), 'spine_thoracic': (-11.575, 10.0, 0.0),
         'right_hip': (26.282, -0.378, -0.134), 'right_knee': (128.291,),
         'left_hip': (58.604, -20.287, 29.244), 'left_knee': (135.0,),
         'left_ankle': (-48.907, 8.399), 'left_toes': (70.117,),
     })
     human.KeyRoot(19.7, (2.518, 42.736, 40.04), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.7, {
-        'spine_lumbar': (-23.02, 20.0, 0.0), 'spine_thoracic': (-14.903, 10.0, 0.0),
-        'right_elbow': (36.576, 17.189), 'right_hip': (28.817, -0.287, -0.114),
-        'right_knee': (130.835,), 'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
+        'spine_lumbar': (-23.084, 20.0, 0.0), 'spine_thoracic': (-14.923, 10.0, 0.0),
+        'right_hip': (28.817, -0.287, -0.114), 'right_knee': (130.835,),
+        'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
         'left_ankle': (-45.238, 14.118), 'left_toes': (55.282,),
     })
     human.KeyRoot(19.8, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-16.365, 20.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
+        'spine_lumbar': (-16.365, 20.0, 0.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
         'left_hip': (107.043, -23.666, 20.819), 'left_knee': (133.257,),
         'left_ankle': (-40.684, 19.283), 'left_toes': (43.214,),
     })
     human.KeyRoot(19.9, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.9, {
         'spine_lumbar': (-15.41, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
         'right_hip': (32.466, -0.198, -0.092), 'right_knee': (134.476,),
         'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
         'left_ankle': (-30.516, 21.77), 'left_toes': (34.363,),
@@ -946,7 +931,7 @@ def replace_fuel_filter():
     human.KeyRoot(20.0, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.0, {
         'spine_lumbar': (-25.197, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (28.888, -0.217, -0.087), 'right_knee': (130.908,),
+        'right_wrist': (0.0, 0.0), 'right_hip': (28.888, -0.217, -0.087), 'right_knee': (130.908,),
         'right_ankle': (15.05, 0.155), 'left_hip': (106.01, -25.0, 14.333), 'left_knee': (132.939,),
         'left_ankle': (-18.119, 29.406), 'right_toes': (86.834,), 'left_toes': (40.267,),
     })
@@ -1032,7 +1017,8 @@ def replace_fuel_filter():
     human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.2, {
         'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
+        'neck': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
+        'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
         'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
         'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
     })

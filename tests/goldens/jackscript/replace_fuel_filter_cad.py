@@ -463,21 +463,21 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
         'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 32.945, -1.001),
-        'right_shoulder': (30.46, 1.012, 11.058), 'right_elbow': (54.597, 79.961),
-        'right_wrist': (-8.849, 1.691),
+        'right_shoulder': (29.185, 0.798, 11.22), 'right_elbow': (57.237, 79.961),
+        'right_wrist': (-9.544, 1.861),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, 32.041, -6.416), 'right_shoulder': (34.681, 1.939, 7.941),
-        'right_elbow': (45.282, 76.894), 'right_wrist': (-4.121, 1.583),
+        'neck': (35.0, 32.041, -6.416), 'right_shoulder': (30.987, 1.318, 8.41),
+        'right_elbow': (52.927, 76.894), 'right_wrist': (-6.134, 2.077),
     })
     human.KeyJoints(8.3, {
         'neck': (35.0, 30.436, -16.029), 'head': (15.0, -11.161),
-        'right_shoulder': (37.594, 3.277, -2.505), 'right_elbow': (36.989, 64.922),
-        'right_wrist': (6.941, 2.975),
+        'right_shoulder': (34.433, 2.745, -2.104), 'right_elbow': (43.533, 64.922),
+        'right_wrist': (5.218, 3.397),
     })
     human.KeyJoints(8.4, {
-        'neck': (35.0, 28.675, -26.574), 'right_shoulder': (35.155, 4.564, -22.079),
-        'right_elbow': (37.549, 41.299), 'right_wrist': (24.281, 6.809),
+        'neck': (35.0, 28.675, -26.574), 'right_shoulder': (34.715, 4.49, -22.023),
+        'right_elbow': (38.46, 41.299), 'right_wrist': (24.041, 6.867),
     })
     human.KeyJoints(8.5, {
         'neck': (35.0, 27.305, -34.783), 'right_shoulder': (31.267, 5.991, -44.103),
@@ -486,10 +486,11 @@ def replace_fuel_filter_cad():
     human.KeyJoints(8.6, {
         'neck': (35.0, 26.854, -37.485), 'right_shoulder': (28.326, 7.623, -61.346),
         'right_elbow': (41.527, -6.232), 'right_wrist': (57.207, 14.564),
+        'left_elbow': (64.315, 17.306),
     })
     human.KeyJoints(8.7, {
         'right_shoulder': (26.389, 10.046, -74.07), 'right_elbow': (40.104, -21.278),
-        'right_wrist': (65.965, 16.569), 'left_elbow': (64.315, 17.306),
+        'right_wrist': (65.965, 16.569),
     })
     human.KeyJoints(8.8, {
         'right_shoulder': (25.492, 13.609, -82.351), 'right_elbow': (35.39, -30.55),
@@ -557,9 +558,9 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(10.0, {
         'spine_lumbar': (60.0, 19.775, -14.693), 'spine_thoracic': (5.685, -9.374, -29.285),
-        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.791, 14.991),
-        'left_shoulder': (51.881, 11.453, 22.307), 'left_elbow': (15.765, 52.263),
-        'left_wrist': (-45.872, 15.144),
+        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'right_elbow': (30.675, -35.047),
+        'left_clavicle': (-9.791, 14.991), 'left_shoulder': (51.881, 11.453, 22.307),
+        'left_elbow': (15.765, 52.263), 'left_wrist': (-45.872, 15.144),
     })
     human.KeyJoints(10.1, {
         'spine_lumbar': (60.0, 19.999, -14.999), 'spine_thoracic': (7.175, -9.998, -29.997),
@@ -569,24 +570,22 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
-    human.KeyJoints(10.2, {
-        'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268), 'right_elbow': (30.675, -35.047),
-    })
+    human.KeyJoints(10.2, {'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268)})
     human.KeyJoints(10.3, {'neck': (30.638, -8.565, 9.124)})
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.4, {
         'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
-        'left_shoulder': (56.4, 11.966, 22.971), 'left_elbow': (9.696, 52.704),
-        'left_wrist': (-44.724, 14.689),
+        'left_shoulder': (56.406, 11.963, 22.971), 'left_elbow': (9.683, 52.704),
+        'left_wrist': (-44.709, 14.685),
     })
     human.KeyJoints(10.5, {
         'neck': (31.5, -7.979, 20.439), 'head': (12.634, 10.463),
-        'left_shoulder': (53.504, 11.893, 20.765), 'left_elbow': (15.46, 52.266),
-        'left_wrist': (-45.586, 14.812),
+        'left_shoulder': (53.505, 11.892, 20.765), 'left_elbow': (15.457, 52.266),
+        'left_wrist': (-45.584, 14.811),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.073, 15.259, 23.853),
-        'left_elbow': (37.985, 42.698), 'left_wrist': (-51.738, 10.312),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.066, 15.264, 23.853),
+        'left_elbow': (38.001, 42.703), 'left_wrist': (-51.759, 10.314),
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
@@ -612,8 +611,8 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(11.2, {
-        'left_shoulder': (-33.333, 42.098, -73.51), 'left_elbow': (98.174, 31.436),
-        'left_wrist': (-66.422, 8.967),
+        'right_wrist': (68.791, 17.033), 'left_shoulder': (-33.333, 42.098, -73.51),
+        'left_elbow': (98.174, 31.436), 'left_wrist': (-66.422, 8.967),
     })
     human.KeyJoints(11.3, {
         'left_shoulder': (-34.183, 42.968, -75.576), 'left_elbow': (98.42, 31.105),
@@ -625,8 +624,8 @@ def replace_fuel_filter_cad():
     human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.678887)
     human.KeyJoints(11.5, {'neck': (35.0, -5.568, 66.354)})
     human.KeyJoints(11.6, {
-        'right_shoulder': (25.239, 16.65, -86.65), 'right_wrist': (68.791, 17.033),
-        'left_shoulder': (-34.186, 43.009, -75.59), 'left_elbow': (98.401, 31.103),
+        'right_shoulder': (25.239, 16.65, -86.65), 'left_shoulder': (-34.186, 43.014, -75.59),
+        'left_elbow': (98.398, 31.103),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.7, {
@@ -850,27 +849,27 @@ def replace_fuel_filter_cad():
     human.KeyJoints(19.2, {
         'spine_lumbar': (43.963, -14.883, 5.613), 'spine_thoracic': (-10.243, 7.112, -7.372),
         'neck': (25.29, -17.725, 6.346), 'head': (11.607, 8.705),
-        'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.907, -19.399, -54.317),
-        'right_elbow': (31.503, -18.43), 'right_wrist': (50.292, 8.825),
-        'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.823, 36.257, -64.814),
-        'left_elbow': (86.011, 28.399), 'left_wrist': (-53.798, 7.087),
+        'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.671, -19.479, -54.349),
+        'right_elbow': (31.997, -18.508), 'right_wrist': (50.63, 8.97),
+        'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.85, 36.096, -64.758),
+        'left_elbow': (85.922, 28.392), 'left_wrist': (-53.792, 7.077),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (23.407, -7.332, 2.671), 'spine_thoracic': (-3.002, 2.66, -3.508),
         'neck': (10.073, -7.06, 2.548), 'head': (4.623, 3.467), 'right_clavicle': (-3.608, 5.315),
-        'right_shoulder': (24.103, -5.291, -36.22), 'right_elbow': (32.851, 0.319),
-        'right_wrist': (23.849, 4.151), 'left_clavicle': (-3.852, 5.72),
-        'left_shoulder': (-7.744, 21.243, -41.321), 'left_elbow': (58.763, 22.485),
-        'left_wrist': (-25.492, 3.346),
+        'right_shoulder': (23.787, -5.278, -36.269), 'right_elbow': (33.245, 0.281),
+        'right_wrist': (23.981, 4.268), 'left_clavicle': (-3.852, 5.72),
+        'left_shoulder': (-7.72, 21.044, -41.2), 'left_elbow': (58.792, 22.495),
+        'left_wrist': (-25.479, 3.367),
     })
     human.KeyRoot(19.4, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.4, {
         'spine_lumbar': (11.207, -0.247, 0.281), 'spine_thoracic': (1.883, 0.015, -0.369),
         'neck': (0.099, -0.07, 0.056), 'head': (0.046, 0.034), 'right_clavicle': (-0.38, 0.519),
-        'right_shoulder': (10.298, 6.189, -21.544), 'right_elbow': (34.088, 15.539),
-        'right_wrist': (2.364, 0.414), 'left_clavicle': (-0.405, 0.559),
-        'left_shoulder': (7.055, 9.024, -22.131), 'left_elbow': (36.569, 17.705),
-        'left_wrist': (-2.49, 0.303), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'right_shoulder': (10.079, 6.252, -21.589), 'right_elbow': (34.258, 15.537),
+        'right_wrist': (2.343, 0.449), 'left_clavicle': (-0.405, 0.559),
+        'left_shoulder': (7.001, 8.823, -22.071), 'left_elbow': (36.762, 17.707),
+        'left_wrist': (-2.489, 0.354), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
@@ -878,64 +877,51 @@ def replace_fuel_filter_cad():
     human.KeyJoints(19.5, {
         'spine_lumbar': (11.511, 9.921, 0.0), 'spine_thoracic': (1.861, 1.989, 0.0),
         'neck': (-0.103, 0.072, 0.0), 'head': (-0.047, -0.035), 'right_clavicle': (0.0, -0.037),
-        'right_shoulder': (8.637, 7.544, -19.854), 'right_elbow': (34.275, 17.307),
-        'right_wrist': (-0.148, -0.019), 'left_clavicle': (0.0, -0.04),
-        'left_shoulder': (8.798, 7.563, -19.89), 'left_elbow': (33.995, 17.152),
-        'left_wrist': (0.177, -0.052), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
+        'right_shoulder': (8.488, 7.59, -19.886), 'right_elbow': (34.377, 17.307),
+        'right_wrist': (-0.168, 0.0), 'left_clavicle': (0.0, -0.04),
+        'left_shoulder': (8.709, 7.405, -19.851), 'left_elbow': (34.206, 17.151),
+        'left_wrist': (0.179, 0.0), 'right_hip': (30.631, 0.0, 0.0), 'right_knee': (132.66,),
         'left_hip': (30.631, 0.0, 0.0), 'left_knee': (132.66,),
     })
     human.KeyRoot(19.6, (2.28, 41.924, 38.567), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.6, {
         'spine_lumbar': (-6.191, 20.0, 0.0), 'spine_thoracic': (-3.156, 9.794, 0.0),
-        'left_elbow': (34.137, 17.16), 'right_hip': (30.975, -0.002, -0.001),
-        'right_knee': (133.004,), 'right_ankle': (15.162, 0.004),
-        'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,), 'left_ankle': (15.162, -0.004),
-        'right_toes': (86.736,), 'left_toes': (86.736,),
+        'right_hip': (30.975, -0.002, -0.001), 'right_knee': (133.004,),
+        'right_ankle': (15.162, 0.004), 'left_hip': (30.975, 0.002, 0.001), 'left_knee': (133.004,),
+        'left_ankle': (15.162, -0.004), 'right_toes': (86.736,), 'left_toes': (86.736,),
     })
     human.KeyRoot(19.7, (1.74, 42.631, 39.723), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.7, {
         'spine_lumbar': (-13.345, 20.0, 0.0), 'spine_thoracic': (-14.973, 10.0, 0.0),
-        'right_shoulder': (8.646, 7.543, -19.922), 'right_elbow': (34.243, 17.255),
-        'right_wrist': (-0.078, -0.028), 'left_shoulder': (8.722, 7.526, -19.935),
-        'left_elbow': (34.164, 17.168), 'left_wrist': (0.1, -0.029),
         'right_hip': (29.119, -0.468, -0.191), 'right_knee': (131.151,),
         'right_ankle': (15.087, 0.295), 'left_hip': (28.49, -2.112, 2.219), 'left_knee': (132.068,),
         'left_ankle': (17.195, 2.945), 'left_toes': (85.798,),
     })
     human.KeyRoot(19.8, (1.562, 43.239, 40.77), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-16.474, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
-        'right_shoulder': (8.425, 7.046, -19.816), 'right_elbow': (35.92, 17.228),
-        'right_wrist': (-0.108, 0.367), 'left_shoulder': (7.378, 7.439, -20.102),
-        'left_elbow': (36.975, 17.176), 'left_wrist': (-0.186, 0.593),
+        'spine_lumbar': (-16.514, 20.0, 0.0), 'spine_thoracic': (-14.901, 10.0, 0.0),
         'right_hip': (27.494, -0.514, -0.19), 'right_knee': (129.498,),
         'right_ankle': (15.135, 0.289), 'left_hip': (32.614, -4.47, 3.326), 'left_knee': (134.97,),
         'left_ankle': (-0.061, 5.498), 'right_toes': (86.572,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.9, (1.923, 42.583, 39.626), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.9, {
-        'spine_lumbar': (-12.084, 20.0, 0.0), 'spine_thoracic': (-14.507, 10.0, 0.0),
-        'right_shoulder': (8.057, 6.09, -19.572), 'right_elbow': (39.1, 17.202),
-        'right_wrist': (-0.192, 1.128), 'left_shoulder': (4.972, 7.356, -20.417),
-        'left_elbow': (42.001, 17.184), 'left_wrist': (-0.692, 1.725),
+        'spine_lumbar': (-12.206, 20.0, 0.0), 'spine_thoracic': (-14.543, 10.0, 0.0),
         'right_hip': (29.291, -0.258, -0.105), 'right_knee': (131.288,),
         'right_ankle': (15.11, 0.184), 'left_hip': (41.403, -17.888, 7.84),
         'left_ankle': (-30.511, 18.414), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
     human.KeyRoot(20.0, (1.566, 43.561, 41.459), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.0, {
-        'spine_lumbar': (-25.476, 20.0, 0.0), 'spine_thoracic': (-10.903, 10.0, 0.0),
-        'right_shoulder': (8.096, 5.866, -19.508), 'right_elbow': (39.802, 17.188),
-        'right_wrist': (-0.194, 1.298), 'left_shoulder': (4.397, 7.367, -20.51),
-        'left_elbow': (43.071, 17.188), 'left_wrist': (-0.815, 1.961),
+        'spine_lumbar': (-25.624, 20.0, 0.0), 'spine_thoracic': (-10.947, 10.0, 0.0),
         'right_hip': (26.503, -0.386, -0.138), 'right_knee': (128.512,),
         'left_hip': (57.423, -20.119, 29.089), 'left_knee': (135.0,),
         'left_ankle': (-48.832, 8.202), 'left_toes': (70.209,),
     })
     human.KeyRoot(20.1, (1.804, 42.933, 40.299), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.1, {
-        'spine_lumbar': (-23.91, 20.0, 0.0), 'spine_thoracic': (-14.842, 10.0, 0.0),
-        'right_shoulder': (8.276, 6.702, -19.771), 'left_elbow': (38.809, 17.189),
+        'spine_lumbar': (-23.977, 20.0, 0.0), 'spine_thoracic': (-14.861, 10.0, 0.0),
+        'right_wrist': (0.0, 0.0), 'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
         'right_hip': (28.271, -0.289, -0.112), 'right_knee': (130.289,),
         'left_hip': (86.119, -23.232, 26.697), 'left_knee': (134.934,),
         'left_ankle': (-45.269, 13.893), 'left_toes': (55.701,),
@@ -943,16 +929,15 @@ def replace_fuel_filter_cad():
     human.KeyRoot(20.2, (2.21, 41.289, 37.549), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.2, {
         'spine_lumbar': (-16.434, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (32.569, -0.261, -0.12), 'right_knee': (134.594,),
-        'right_ankle': (15.053, 0.198), 'left_hip': (106.363, -23.561, 21.269),
-        'left_knee': (133.197,), 'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
+        'left_shoulder': (8.594, 7.5, -20.0), 'right_hip': (32.569, -0.261, -0.12),
+        'right_knee': (134.594,), 'right_ankle': (15.053, 0.198),
+        'left_hip': (106.363, -23.561, 21.269), 'left_knee': (133.197,),
+        'left_ankle': (-41.206, 19.127), 'left_toes': (43.502,),
     })
     human.KeyRoot(20.3, (2.266, 41.268, 37.505), (-7.907, 0.0, 0.0))
     human.KeyJoints(20.3, {
-        'spine_lumbar': (-15.119, 20.0, 0.0), 'right_hip': (32.639, -0.2, -0.093),
+        'spine_lumbar': (-15.119, 20.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
+        'right_elbow': (34.377, 17.189), 'right_hip': (32.639, -0.2, -0.093),
         'right_knee': (134.651,), 'left_hip': (119.967, -25.0, 10.628), 'left_knee': (134.997,),
         'left_ankle': (-30.514, 21.747), 'left_toes': (33.665,),
     })

@@ -519,6 +519,11 @@ class FootTrack:
     anchor: FloatArray  # (N, 3): that footprint's toe tip, the roll's pivot
 
 
+def _moving_copy(ft: FootTrack) -> FootTrack:
+    """``ft`` with its own copy of what :meth:`WalkMotion.pose` changes (ankle and pitch)."""
+    return FootTrack(ft.ankle.copy(), ft.heading, ft.pitch.copy(), ft.planted, ft.anchor)
+
+
 _LANDED, _ROLLING, _SWINGING = 1, 2, 3  # what sets a foot at a time (WalkMotion.feet)
 
 
@@ -626,8 +631,9 @@ class WalkMotion:
         out = {f: np.zeros(len(grid)) for f in LEGS}
         for _ in range(ROLL_ROUNDS):  # a roll begun early can need more: the limit's other branch
             self._early_roll = out
-            *_, rolled = self.pose(grid)
+            # the feet as scheduled, and a copy the pose rolls (``pose`` would make them again)
             planned = self.feet(grid)
+            *_, rolled = self.pose(grid, {f: _moving_copy(ft) for f, ft in planned.items()})
             grown = False
             for f in LEGS:
                 on = rolled[f].planted
@@ -980,15 +986,17 @@ class WalkMotion:
         ft.ankle[rows[lift], 1] = low[lift]
 
     def pose(
-        self, t: FloatArray
+        self, t: FloatArray, feet: dict[str, FootTrack] | None = None
     ) -> tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]:
         """Root position, heading, each leg's six angles and the feet at times ``t``.
 
         A planted foot whose ankle would pass its dorsiflexion limit rolls about its toe
         just enough (the heel rises when the ankle can bend no further, as in real gait).
+        ``feet``: :meth:`feet` at ``t``, if the caller has them (their ankles and pitches are
+        changed in place).
         """
         pos, head = self.root(t)
-        legs, feet = {}, self.feet(t)
+        legs, feet = {}, self.feet(t) if feet is None else feet
         for f, ft in feet.items():
             self._within_reach(f, ft, pos, head)
             hi = self.legs.upper[f][4] - LIMIT_MARGIN

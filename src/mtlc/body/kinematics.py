@@ -338,18 +338,25 @@ _OUTPUT_POSE: list[tuple[Skeleton, FloatArray, FloatArray, FloatArray, Pose]] = 
 
 
 def output_pose(
-    skel: Skeleton, q: FloatArray, root_position: FloatArray, root_rotation: FloatArray
+    skel: Skeleton,
+    q: FloatArray,
+    root_position: FloatArray,
+    root_rotation: FloatArray,
+    *,
+    keep: bool = False,
 ) -> Pose:
     """``forward(skel, q, root_position, root_rotation, with_axes=False)`` of a motion's output
-    frames, remembered (one batch, its inputs copied) for the next asker of the same frames:
-    the verify pass poses them, then lint's rules or the metrics asked again (a long walk's
-    26,000 frames: a quarter of a second each time). The pose is shared: read it only."""
+    frames, handed on: the verify pass poses them (``keep``: remembered, one batch, its inputs
+    copied), then lint's rules or the metrics ask for the same frames and take that pose (a
+    long walk's 26,000 frames: a quarter of a second each time). Taking it forgets it, so no
+    pose outlives its compile. The pose is shared: read it only."""
     now = [np.ascontiguousarray(x, dtype=float) for x in (q, root_position, root_rotation)]
-    for kept_skel, *kept, pose in _OUTPUT_POSE:
-        if kept_skel is skel and all(_same_bits(a, b) for a, b in zip(kept, now, strict=True)):
-            return pose
-    pose = forward(skel, q, root_position, root_rotation, with_axes=False)
-    _OUTPUT_POSE[:] = [(skel, *(x.copy() for x in now), pose)]
+    kept = _OUTPUT_POSE[:]
+    _OUTPUT_POSE.clear()
+    same = [k[-1] for k in kept if k[0] is skel and all(map(_same_bits, k[1:4], now))]
+    pose = same[0] if same else forward(skel, q, root_position, root_rotation, with_axes=False)
+    if keep:
+        _OUTPUT_POSE.append((skel, *(x.copy() for x in now), pose))
     return pose
 
 

@@ -110,7 +110,7 @@ class _Verifier:
         f = ir.frames
         self.t: FloatArray = np.asarray(f.time, dtype=float)
         # no Jacobian is taken here: the dof axes (a third of the pose's memory) are left out
-        self.pose: Pose = output_pose(self.skel, f.q, f.root_position, f.root_rotation)
+        self.pose: Pose = output_pose(self.skel, f.q, f.root_position, f.root_rotation, keep=True)
         self.v = Verification()
         self.reported: set[tuple[Any, ...]] = set()
         self.claims = [c for c in ctx.claims]

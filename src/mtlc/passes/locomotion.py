@@ -29,6 +29,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
+from mtlc.body.kinematics import bits_differ
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.ir.pchip import Hermite, hermite, pchip, pchip_slopes
 from mtlc.passes.context import INTERNAL_FPS, PassContext
@@ -627,17 +628,33 @@ class WalkMotion:
         ``ROLL_RATE``: the roll a limit needs can jump (a rear foot rolled 4° → 13° in 17 ms
         as the pelvis sank 1.5 mm, its knee 21° → 37°), and a foot that starts rolling
         before it must does not. Kept inside each stance (a lifted or landing foot is not
-        rolled by it), on the pelvis grid; :meth:`feet` adds it to the planted feet."""
-        out = {f: np.zeros(len(grid)) for f in LEGS}
+        rolled by it), on the pelvis grid; :meth:`feet` adds it to the planted feet.
+
+        A round poses only the times whose roll the last round changed (and their neighbours):
+        a time's feet and pose are its own (:meth:`feet` reads the roll at that time alone),
+        so the others' are the last round's, and a walk's later rounds change a few stances."""
+        n = len(grid)
+        out = {f: np.zeros(n) for f in LEGS}
+        # each foot's scheduled and rolled pitch and whether it is planted, at every time
+        planned = {f: np.zeros(n) for f in LEGS}
+        pitch = {f: np.zeros(n) for f in LEGS}
+        planted = {f: np.zeros(n, dtype=bool) for f in LEGS}
+        rows: NDArray[np.intp] | slice = slice(None)
         for _ in range(ROLL_ROUNDS):  # a roll begun early can need more: the limit's other branch
             self._early_roll = out
-            # the feet as scheduled, and a copy the pose rolls (``pose`` would make them again)
-            planned = self.feet(grid)
-            *_, rolled = self.pose(grid, {f: _moving_copy(ft) for f, ft in planned.items()})
+            before = {f: out[f].copy() for f in LEGS}
+            times = grid[rows]
+            if len(times):
+                # the feet as scheduled, and a copy the pose rolls (``pose`` would make them again)
+                sched = self.feet(times)
+                *_, rolled = self.pose(times, {f: _moving_copy(ft) for f, ft in sched.items()})
+                for f in LEGS:
+                    planned[f][rows], pitch[f][rows] = sched[f].pitch, rolled[f].pitch
+                    planted[f][rows] = rolled[f].planted
             grown = False
             for f in LEGS:
-                on = rolled[f].planted
-                extra = np.where(on, np.maximum(rolled[f].pitch - planned[f].pitch, 0.0), 0.0)
+                on = planted[f]
+                extra = np.where(on, np.maximum(pitch[f] - planned[f], 0.0), 0.0)
                 if not np.any(extra > 1e-6):
                     continue
                 grown = True
@@ -651,6 +668,12 @@ class WalkMotion:
                 out[f] = env
             if not grown:
                 break
+            moved = np.zeros(n, dtype=bool)
+            for f in LEGS:
+                moved |= bits_differ(out[f], before[f])
+            moved[1:] |= moved[:-1].copy()  # and each changed time's neighbours
+            moved[:-1] |= moved[1:].copy()
+            rows = np.flatnonzero(moved)
         return out
 
     def _geometry(self, st: Step) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:

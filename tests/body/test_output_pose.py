@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mtlc.body import build_manikin, forward
-from mtlc.body.kinematics import output_pose
+from mtlc.body.kinematics import forget_output_pose, output_pose
 
 SK = build_manikin("gb10000_1988", "female", 5)
 
@@ -49,4 +49,11 @@ def test_a_signed_zero_is_another_frame() -> None:
     q[:, 0] = 0.0
     kept = output_pose(SK, q, root, rot, keep=True)
     q[:, 0] = -0.0
+    assert output_pose(SK, q, root, rot) is not kept
+
+
+def test_a_pose_nobody_took_is_forgotten() -> None:
+    q, root, rot = _frames()
+    kept = output_pose(SK, q, root, rot, keep=True)
+    forget_output_pose()  # what a compile does first
     assert output_pose(SK, q, root, rot) is not kept

@@ -360,6 +360,11 @@ def output_pose(
     return pose
 
 
+def forget_output_pose() -> None:
+    """Drop a kept ``output_pose`` nobody took (a compile starting: it is not its frames)."""
+    _OUTPUT_POSE.clear()
+
+
 def _same_bits(a: FloatArray, b: FloatArray) -> bool:
     """Whether two float arrays are equal bit for bit (-0.0 is not 0.0; a NaN is itself)."""
     return a.shape == b.shape and bool(np.array_equal(a.view(np.int64), b.view(np.int64)))

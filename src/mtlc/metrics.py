@@ -27,8 +27,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.body import forward, site_positions
-from mtlc.body.kinematics import repeated_rows
+from mtlc.body import site_positions
+from mtlc.body.kinematics import output_pose, repeated_rows
 from mtlc.ir.model import MotionIR
 from mtlc.loads import carried_com
 
@@ -693,7 +693,8 @@ def compute_metrics(ir: MotionIR) -> Metrics:
         raise ValueError("the IR's frames are not verified: run the verify pass last")
     t = frames.time
     # sites only: no dof axes (half the forward kinematics, a third of the pose's memory)
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
+    # the verify pass's pose of the same frames (``output_pose``)
+    pose = output_pose(skel, frames.q, frames.root_position, frames.root_rotation)
     k = int(np.argmax(v.penetration_frames))
     stance = foot_stance(ir, t)
     feet = foot_points(skel, pose)

@@ -876,6 +876,77 @@ def test_the_feet_of_all_steps_at_once_are_those_step_by_step(
     assert any(not got[f].planted.all() for f in LEGS) or n < 50  # swings were compared
 
 
+def _rolls_every_time(motion, grid: np.ndarray) -> dict:  # type: ignore[no-untyped-def]
+    """``WalkMotion._anticipated_rolls`` as it was: every round poses every time."""
+    from mtlc.passes.locomotion import ROLL_RATE, ROLL_ROUNDS, _runs_of
+
+    out = {f: np.zeros(len(grid)) for f in LEGS}
+    for _ in range(ROLL_ROUNDS):
+        motion._early_roll = out
+        *_, rolled = motion.pose(grid)
+        planned = motion.feet(grid)
+        grown = False
+        for f in LEGS:
+            on = rolled[f].planted
+            extra = np.where(on, np.maximum(rolled[f].pitch - planned[f].pitch, 0.0), 0.0)
+            if not np.any(extra > 1e-6):
+                continue
+            grown = True
+            want = out[f] + extra
+            env = np.zeros(len(grid))
+            for a, b in _runs_of(on):
+                t, e = grid[a:b], want[a:b]
+                ahead = np.maximum.accumulate((e - ROLL_RATE * t)[::-1])[::-1] + ROLL_RATE * t
+                after = np.maximum.accumulate(e + ROLL_RATE * t) - ROLL_RATE * t
+                env[a:b] = np.maximum(ahead, after)
+            out[f] = env
+        if not grown:
+            break
+    return out
+
+
+@pytest.fixture(scope="module")
+def rolling_walks() -> list:
+    """The ``WalkMotion``s of an example whose walks roll a planted foot beyond its schedule
+    (the ankle at its dorsiflexion limit), to the locomotion pass."""
+    from mtlc.passes import locomotion
+
+    made: list = []
+    init = locomotion.WalkMotion.__post_init__
+
+    def keep(self) -> None:  # type: ignore[no-untyped-def]
+        init(self)
+        made.append(self)
+
+    program = run_frontend([ROOT / "examples" / "remove_access_panel.mtask"])
+    locomotion.WalkMotion.__post_init__ = keep  # type: ignore[method-assign]
+    try:
+        run_motion(program.timelines[0], program.sink, until="locomotion")
+    finally:
+        locomotion.WalkMotion.__post_init__ = init  # type: ignore[method-assign]
+    assert made
+    return made
+
+
+def test_the_anticipated_rolls_posing_only_changed_times_are_those_posing_all(
+    rolling_walks: list,
+) -> None:
+    """The roll's later rounds pose only the times the last round changed: the same rolls, to
+    the bit, as posing every time every round (and some walk's roll grew: it was compared)."""
+    grew = False
+    for motion in rolling_walks:
+        kept = motion._early_roll
+        try:
+            want = _rolls_every_time(motion, motion._grid)
+            got = motion._anticipated_rolls(motion._grid)
+        finally:
+            motion._early_roll = kept
+        for f in LEGS:
+            np.testing.assert_array_equal(got[f].view(np.int64), want[f].view(np.int64))
+            grew |= bool(np.any(got[f] > 0.0))
+    assert grew
+
+
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), j0=st.integers(0, 40), width=st.integers(1, 41))
 def test_a_block_of_heights_in_pieces_is_the_block_at_once(

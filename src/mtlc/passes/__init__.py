@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from mtlc.body.kinematics import forget_output_pose
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.ir.model import MotionIR
 from mtlc.passes import (
@@ -84,6 +85,7 @@ def run_motion(
     The timeline must be timed for its manikin (``schedule.check_timed``): the motion of a
     manikin is then the same whichever command asks for it."""
     schedule.check_timed(timeline)
+    forget_output_pose()  # the last compile's output pose, if no one took it
     ctx = PassContext(sink, options or MotionOptions())
     ir = lower(timeline)
     for name, motion_pass in MOTION_PASSES:

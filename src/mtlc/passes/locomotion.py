@@ -29,6 +29,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
+from mtlc.body.kinematics import bits_differ
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.ir.pchip import Hermite, hermite, pchip, pchip_slopes
 from mtlc.passes.context import INTERNAL_FPS, PassContext
@@ -65,7 +66,7 @@ CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 ROLL_RATE = 1.2  # rad/s: how fast a planted foot's unscheduled roll may begin or end
 ROLL_ROUNDS = 4  # rounds of that roll, each from the last one's
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
-REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
+REACH_CHUNK = 4096  # grid times whose candidate heights are solved at once (1024: 7 % more time)
 REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
 UNCURED_TOL = 0.02  # rad (or 2 mm of reach): a lower pelvis that helps less does not win
 REACH_BLOCKS = (2, 6, 33)  # candidates tried per round, at the times still open: sums to 41
@@ -519,6 +520,11 @@ class FootTrack:
     anchor: FloatArray  # (N, 3): that footprint's toe tip, the roll's pivot
 
 
+def _moving_copy(ft: FootTrack) -> FootTrack:
+    """``ft`` with its own copy of what :meth:`WalkMotion.pose` changes (ankle and pitch)."""
+    return FootTrack(ft.ankle.copy(), ft.heading, ft.pitch.copy(), ft.planted, ft.anchor)
+
+
 _LANDED, _ROLLING, _SWINGING = 1, 2, 3  # what sets a foot at a time (WalkMotion.feet)
 
 
@@ -622,16 +628,33 @@ class WalkMotion:
         ``ROLL_RATE``: the roll a limit needs can jump (a rear foot rolled 4° → 13° in 17 ms
         as the pelvis sank 1.5 mm, its knee 21° → 37°), and a foot that starts rolling
         before it must does not. Kept inside each stance (a lifted or landing foot is not
-        rolled by it), on the pelvis grid; :meth:`feet` adds it to the planted feet."""
-        out = {f: np.zeros(len(grid)) for f in LEGS}
+        rolled by it), on the pelvis grid; :meth:`feet` adds it to the planted feet.
+
+        A round poses only the times whose roll the last round changed (and their neighbours):
+        a time's feet and pose are its own (:meth:`feet` reads the roll at that time alone),
+        so the others' are the last round's, and a walk's later rounds change a few stances."""
+        n = len(grid)
+        out = {f: np.zeros(n) for f in LEGS}
+        # each foot's scheduled and rolled pitch and whether it is planted, at every time
+        planned = {f: np.zeros(n) for f in LEGS}
+        pitch = {f: np.zeros(n) for f in LEGS}
+        planted = {f: np.zeros(n, dtype=bool) for f in LEGS}
+        rows: NDArray[np.intp] | slice = slice(None)
         for _ in range(ROLL_ROUNDS):  # a roll begun early can need more: the limit's other branch
             self._early_roll = out
-            *_, rolled = self.pose(grid)
-            planned = self.feet(grid)
+            before = {f: out[f].copy() for f in LEGS}
+            times = grid[rows]
+            if len(times):
+                # the feet as scheduled, and a copy the pose rolls (``pose`` would make them again)
+                sched = self.feet(times)
+                *_, rolled = self.pose(times, {f: _moving_copy(ft) for f, ft in sched.items()})
+                for f in LEGS:
+                    planned[f][rows], pitch[f][rows] = sched[f].pitch, rolled[f].pitch
+                    planted[f][rows] = rolled[f].planted
             grown = False
             for f in LEGS:
-                on = rolled[f].planted
-                extra = np.where(on, np.maximum(rolled[f].pitch - planned[f].pitch, 0.0), 0.0)
+                on = planted[f]
+                extra = np.where(on, np.maximum(pitch[f] - planned[f], 0.0), 0.0)
                 if not np.any(extra > 1e-6):
                     continue
                 grown = True
@@ -645,6 +668,12 @@ class WalkMotion:
                 out[f] = env
             if not grown:
                 break
+            moved = np.zeros(n, dtype=bool)
+            for f in LEGS:
+                moved |= bits_differ(out[f], before[f])
+            moved[1:] |= moved[:-1].copy()  # and each changed time's neighbours
+            moved[:-1] |= moved[1:].copy()
+            rows = np.flatnonzero(moved)
         return out
 
     def _geometry(self, st: Step) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -980,15 +1009,17 @@ class WalkMotion:
         ft.ankle[rows[lift], 1] = low[lift]
 
     def pose(
-        self, t: FloatArray
+        self, t: FloatArray, feet: dict[str, FootTrack] | None = None
     ) -> tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]:
         """Root position, heading, each leg's six angles and the feet at times ``t``.
 
         A planted foot whose ankle would pass its dorsiflexion limit rolls about its toe
         just enough (the heel rises when the ankle can bend no further, as in real gait).
+        ``feet``: :meth:`feet` at ``t``, if the caller has them (their ankles and pitches are
+        changed in place).
         """
         pos, head = self.root(t)
-        legs, feet = {}, self.feet(t)
+        legs, feet = {}, self.feet(t) if feet is None else feet
         for f, ft in feet.items():
             self._within_reach(f, ft, pos, head)
             hi = self.legs.upper[f][4] - LIMIT_MARGIN

@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import site_positions
 from mtlc.body.capsules import capsule_segments, collision_capsules, self_intersection
-from mtlc.body.kinematics import Pose, repeated_rows
+from mtlc.body.kinematics import Pose, output_pose, repeated_rows
 from mtlc.geometry.clearance import FrameClearance, frame_clearance, held_capsules, scene_pieces
 from mtlc.geometry.held import HeldPart, held_parts
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
@@ -110,7 +110,7 @@ class _Verifier:
         f = ir.frames
         self.t: FloatArray = np.asarray(f.time, dtype=float)
         # no Jacobian is taken here: the dof axes (a third of the pose's memory) are left out
-        self.pose: Pose = forward(self.skel, f.q, f.root_position, f.root_rotation, with_axes=False)
+        self.pose: Pose = output_pose(self.skel, f.q, f.root_position, f.root_rotation, keep=True)
         self.v = Verification()
         self.reported: set[tuple[Any, ...]] = set()
         self.claims = [c for c in ctx.claims]

@@ -9,8 +9,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.body import forward
-from mtlc.body.kinematics import Pose
+from mtlc.body.kinematics import Pose, output_pose
 from mtlc.diagnostics import Span
 from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import FloatArray, MotionIR, Segment
@@ -119,9 +118,8 @@ def make_view(
     if frames is None or ir.skeleton is None or len(frames.time) == 0 or not ir.segments:
         return None
     # no dof axes: the rules take no Jacobian (a third of a pose's ~2.8 KB a frame)
-    pose = forward(
-        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, with_axes=False
-    )
+    # the verify pass's pose of the same frames (``output_pose``)
+    pose = output_pose(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
     return MotionView(
         ir, manikin, config, frames.time, frames.q, pose, frame_segments(ir, frames.time), timeline
     )

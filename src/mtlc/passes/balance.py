@@ -359,9 +359,8 @@ def arm_between(
     """The arm of ``hand`` over the frames ``w``, in place: the hand where the pace pass planned
     it (``q_start`` on ``root_start``), off that path by ``ride`` (W, 1) of what the corrected
     trunk carries it, and by ``offset`` (W, 3), kept within the reach of the arm with its
-    elbow bent ``least``
-    (``kept_in_reach``); the shoulder and elbow solved from ``seed_arm`` (W, arm dofs), the
-    wrist keeping it."""
+    elbow bent ``least`` (``kept_in_reach``); the shoulder and elbow solved from ``seed_arm``
+    (W, arm dofs), the wrist keeping it."""
     cols = arm_dofs(skel, hand)
     rot = frames.root_rotation[w]
     ridden = frames.q[w].copy()  # the corrected body with the arm as it was planned
@@ -895,7 +894,8 @@ def balance_frames(
     q_start = frames.q.copy()
     approaching = any(lo.size for lo, _ in segs.approaches.values())
     approaching |= any(lo.size for lo, _ in segs.departures.values())
-    # the root before the corrections, for ``approach_arms`` only (24 bytes a frame)
+    # the root before the corrections, for ``approach_arms`` and ``departing_arms`` only (24
+    # bytes a frame)
     root_start = frames.root_position.copy() if approaching else frames.root_position
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)

@@ -878,7 +878,8 @@ def test_the_feet_of_all_steps_at_once_are_those_step_by_step(
 
 def _rolls_every_time(motion, grid: np.ndarray) -> dict:  # type: ignore[no-untyped-def]
     """``WalkMotion._anticipated_rolls`` as it was: every round poses every time."""
-    from mtlc.passes.locomotion import ROLL_RATE, ROLL_ROUNDS, _runs_of
+    from mtlc.ir.model import runs_of
+    from mtlc.passes.locomotion import ROLL_RATE, ROLL_ROUNDS
 
     out = {f: np.zeros(len(grid)) for f in LEGS}
     for _ in range(ROLL_ROUNDS):
@@ -894,7 +895,7 @@ def _rolls_every_time(motion, grid: np.ndarray) -> dict:  # type: ignore[no-unty
             grown = True
             want = out[f] + extra
             env = np.zeros(len(grid))
-            for a, b in _runs_of(on):
+            for a, b in runs_of(on):
                 t, e = grid[a:b], want[a:b]
                 ahead = np.maximum.accumulate((e - ROLL_RATE * t)[::-1])[::-1] + ROLL_RATE * t
                 after = np.maximum.accumulate(e + ROLL_RATE * t) - ROLL_RATE * t

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from mtlc.body.kinematics import Pose
 from mtlc.body.skeleton import Skeleton
-from mtlc.ir.model import MotionIR
+from mtlc.ir.model import MotionIR, runs_of
 from mtlc.loads import AXIAL_KINDS  # tools turned by re-gripping
 from mtlc.loads import held_load as held_load  # what each hand holds, per frame
 
@@ -230,9 +230,8 @@ def muscle_scores(ir: MotionIR, time: FloatArray) -> dict[str, IntArray]:
 def _held_longer_than(mask: BoolArray, time: FloatArray, seconds: float) -> BoolArray:
     """Frames in a run of ``mask`` that lasts ``seconds`` or longer."""
     m = np.asarray(mask, dtype=bool)
-    edges = np.diff(np.concatenate([[0], m.astype(np.int8), [0]]))
     out = np.zeros(len(m), dtype=bool)
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+    for a, b in runs_of(m):
         out[a:b] = time[b - 1] - time[a] >= seconds
     return out
 

@@ -20,6 +20,14 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 
+
+def runs_of(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(start, stop) index ranges where ``mask`` (N,) holds: the runs of frames a pass treats
+    as one."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask).astype(np.int8), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
 IR_FORMAT_VERSION = 1
 SEGMENT_KINDS = ("TA", "TO", "posture", "locomotion", "grip", "gaze", "hold", "rest")
 TRACKS = ("root", "spine", "head", "l_arm", "r_arm", "l_hand", "r_hand", "l_leg", "r_leg")

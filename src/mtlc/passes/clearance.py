@@ -41,7 +41,7 @@ from mtlc.body.ik.clearance import (
 )
 from mtlc.body.kinematics import forward, site_positions, site_rotation
 from mtlc.body.skeleton import Skeleton
-from mtlc.ir.model import FloatArray, MotionIR
+from mtlc.ir.model import FloatArray, MotionIR, runs_of
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import carried_postures
 from mtlc.passes.joint_speed import speed_limited, worse_runs_undone
@@ -146,8 +146,7 @@ def without_swings(q: FloatArray, correction: FloatArray) -> FloatArray:
     swings = np.flatnonzero((after > np.maximum(before, MAX_SWING)).any(axis=1))
     out = correction.copy()
     moved = np.abs(correction).max(axis=1) > 0.0
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], moved.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in runs_of(moved):
         if np.any((swings >= a - 1) & (swings < b)):
             out[a:b] = _averaged(correction[a:b])
     return out
@@ -279,8 +278,7 @@ def swivel_planned(
     start[rows] = put
     lost = np.zeros(len(t), dtype=bool)
     lost[rows[~ok]] = True
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (turns != 0.0).astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in runs_of(turns != 0.0):
         if lost[a:b].any():
             start[a:b] = q[a:b]
     if np.array_equal(start, q):
@@ -399,8 +397,7 @@ def flips_evened(
     if not flipped.any():
         return solved
     out = solved.copy()
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flipped.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in runs_of(flipped):
         correction = np.zeros_like(q)
         correction[a:b] = solved[a:b] - q[a:b]
         # the hands' sites to keep: where they are (the orientation the solve yielded flipped

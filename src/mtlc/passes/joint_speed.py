@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR
+from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, runs_of
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import interpolate_naive, walking_mask
 from mtlc.passes.timewarp import warp_result
@@ -238,9 +238,8 @@ def whole_frames(dt: FloatArray, new_dt: FloatArray, period: float) -> FloatArra
     """``new_dt`` with each run of stretched intervals stretched a little more, to add a whole
     number of ``period``s."""
     grown = new_dt > dt * (1.0 + 1e-12)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], grown.astype(np.int8), [0]])))
     out = new_dt.copy()
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in runs_of(grown):
         added = float(np.sum(new_dt[a:b] - dt[a:b]))
         whole = math.ceil(added / period - 1e-6) * period
         out[a:b] = dt[a:b] + (new_dt[a:b] - dt[a:b]) * (whole / added)
@@ -363,8 +362,7 @@ def worse_runs_undone(
 
     was, now = excess(before), excess(after)
     out = after.copy()
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], changed.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in runs_of(changed):
         if only is not None and not only[a:b].any():
             continue
         span = slice(max(a - 1, 0), min(b, len(was)))  # the steps into, within and out of it

@@ -30,7 +30,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from mtlc.body.kinematics import bits_differ
-from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
+from mtlc.ir.model import Keyframes, MotionIR, Segment, runs_of, yaw_quaternion
 from mtlc.ir.pchip import Hermite, hermite, pchip, pchip_slopes
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.stance import WIDE_RESULT, WIDE_STEP, WIDE_TURN_OUT, needs_wide_squat
@@ -660,7 +660,7 @@ class WalkMotion:
                 grown = True
                 want = out[f] + extra
                 env = np.zeros(len(grid))
-                for a, b in _runs_of(on):
+                for a, b in runs_of(on):
                     t, e = grid[a:b], want[a:b]
                     ahead = np.maximum.accumulate((e - ROLL_RATE * t)[::-1])[::-1] + ROLL_RATE * t
                     after = np.maximum.accumulate(e + ROLL_RATE * t) - ROLL_RATE * t
@@ -1048,12 +1048,6 @@ class WalkMotion:
                                 ft.pitch[sub], clip=False)  # fmt: skip
             legs[f] = np.clip(q, self.legs.lower[f], self.legs.upper[f])
         return pos, head, legs, feet
-
-
-def _runs_of(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """(start, stop) index ranges where ``mask`` holds."""
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def at_rest_ends(t: FloatArray, y: FloatArray) -> Hermite:

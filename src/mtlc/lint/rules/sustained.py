@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mtlc.ir.model import runs_of
 from mtlc.lint.findings import Finding
 from mtlc.lint.rules.view import MotionView
 from mtlc.metrics import foot_stance
@@ -32,10 +33,8 @@ def runs_at_or_above(
     grand: NDArray[np.integer], threshold: int, fps: float, min_seconds: float
 ) -> list[Run]:
     """The runs of frames scoring ``threshold`` or more that last longer than ``min_seconds``."""
-    high = np.concatenate([[False], np.asarray(grand) >= threshold, [False]])
-    edges = np.flatnonzero(np.diff(high.astype(np.int8)))
     out = []
-    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+    for start, stop in runs_of(np.asarray(grand) >= threshold):
         seconds = (stop - start) / fps
         if seconds > min_seconds + 1e-9:
             out.append(Run(int(start), int(stop), seconds, int(np.max(grand[start:stop]))))

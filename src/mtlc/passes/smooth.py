@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtlc.body import Pose, forward, part_site_positions, site_positions, site_rotation
+from mtlc.body.kinematics import bits_differ, forward_below
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
@@ -178,7 +179,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         soles_before = foot_points(skel, pose)
         contact = contact_mask(soles_before, stance_all[r], ir.ground)
         _stance_legs_kept(frames, q0, root0, r, contact, legs)
-        after = forward(skel, frames.q[r], frames.root_position[r], rot, with_axes=False)
+        after = _posed_after(skel, pose, q0[r], root0[r], frames.q[r], frames.root_position[r], rot)
         # re-pin only the frames where a touching foot or a pinned hand actually moved
         soles = np.linalg.norm(foot_points(skel, after) - soles_before, axis=-1)
         m = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
@@ -216,6 +217,47 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         back = np.flatnonzero((kept != frames.q).any(axis=1))
         frames.q[back], frames.root_position[back] = q1[back], root1[back]
     return ir
+
+
+def _posed_after(
+    skel: Skeleton,
+    before: Pose,
+    q0: np.ndarray,
+    root0: np.ndarray,
+    q: np.ndarray,
+    root: np.ndarray,
+    rot: np.ndarray,
+) -> Pose:
+    """``forward(skel, q, root, rot, with_axes=False)`` given ``before``, that call's pose of
+    ``q0`` and ``root0``: a frame the blend left alone is ``before``'s, a frame whose root
+    stayed has only the branches below its topmost changed joints placed again
+    (``forward_below``: the same numbers), frames grouped by those joints; the others posed
+    whole. A long walk's blend changes one swinging leg of most frames (4 joints of 21) and
+    nothing of a fifth of them: posing every frame after the blend was half the pass."""
+    n = len(q)
+    R, p = before.R.copy(), before.p.copy()
+    moved = bits_differ(root, root0).any(axis=1)
+    changed = np.zeros((n, skel.n_joints), dtype=bool)  # (row, joint) a dof of it changed
+    for d in np.flatnonzero(bits_differ(q, q0).any(axis=0)):
+        changed[:, skel.dof_joint[d]] |= bits_differ(q[:, d], q0[:, d])
+    # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
+    tops = changed & (changed.astype(np.int64) @ skel.ancestor.T.astype(np.int64) == 1)
+    whole = moved | tops[:, skel.parent < 0].any(axis=1)
+    tops[whole] = False
+    groups, which = np.unique(tops, axis=0, return_inverse=True)
+    for g, joints in enumerate(groups):
+        rows = np.flatnonzero((which.ravel() == g) & ~whole)
+        if rows.size == 0 or not joints.any():
+            continue
+        part = Pose(R=R[rows], p=p[rows], axes=before.axes[rows], root=before.root[rows])
+        for top in np.flatnonzero(joints):
+            part = forward_below(skel, q[rows], part, int(top))
+        R[rows], p[rows] = part.R, part.p
+    rows = np.flatnonzero(whole)
+    if rows.size:
+        part = forward(skel, q[rows], root[rows], rot[rows], with_axes=False)
+        R[rows], p[rows] = part.R, part.p
+    return Pose(R=R, p=p, axes=before.axes, root=np.array(root, dtype=float))
 
 
 def _stance_legs_kept(

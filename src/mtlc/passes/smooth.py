@@ -244,13 +244,14 @@ def _posed_after(
     tops = changed & (changed.astype(np.int64) @ skel.ancestor.T.astype(np.int64) == 1)
     whole = moved | tops[:, skel.parent < 0].any(axis=1)
     tops[whole] = False
-    groups, which = np.unique(tops, axis=0, return_inverse=True)
-    for g, joints in enumerate(groups):
-        rows = np.flatnonzero((which.ravel() == g) & ~whole)
-        if rows.size == 0 or not joints.any():
+    code = tops @ (1 << np.arange(skel.n_joints, dtype=np.int64))  # the set of tops, a number
+    order = np.argsort(code, kind="stable")
+    edges = np.flatnonzero(np.diff(code[order])) + 1
+    for rows in np.split(order, edges):
+        if rows.size == 0 or code[rows[0]] == 0:  # nothing changed, or posed whole below
             continue
         part = Pose(R=R[rows], p=p[rows], axes=before.axes[rows], root=before.root[rows])
-        for top in np.flatnonzero(joints):
+        for top in np.flatnonzero(tops[rows[0]]):
             part = forward_below(skel, q[rows], part, int(top))
         R[rows], p[rows] = part.R, part.p
     rows = np.flatnonzero(whole)

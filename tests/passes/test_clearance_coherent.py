@@ -10,15 +10,18 @@ output frames.
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mtlc.body.ik.clearance import penetration
+from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import run_motion
+from mtlc.passes import clearance, run_motion
+from mtlc.passes.context import PassContext
 from mtlc.semantics.timeline import ManikinSpec
 
 PANEL = Path(__file__).resolve().parents[1] / "data" / "clearance" / "aircraft_panel_sideways.mtask"
@@ -64,3 +67,24 @@ def test_no_one_frame_correction_spike_at_the_screw(panel: tuple[MotionIR, Motio
     spike = np.where(same_way, np.minimum(np.abs(mid - prev), np.abs(mid - nxt)), 0.0)
     k = int(np.argmax(spike))
     assert spike[k] <= SPIKE_LIMIT, f"{spike[k]:.1f} deg at {after.frames.time[k + 1]:.3f} s"
+
+
+def test_reseeded_measures_only_the_frames_it_uses(
+    panel: tuple[MotionIR, MotionIR], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``reseeded`` measures the frames within reach of a kept hand's frame only: measuring
+    every frame inside, as it did, gives the same frames to the bit."""
+    before, after = panel
+    left_out = []
+    within = clearance._within
+
+    def every_frame(rows: np.ndarray, reach: int, n: int) -> np.ndarray:
+        left_out.append(not within(rows, reach, n).all())
+        return np.ones(n, dtype=bool)
+
+    monkeypatch.setattr(clearance, "_within", every_frame)
+    ir = copy.deepcopy(before)
+    clearance.run(ir, PassContext(DiagnosticSink()))
+    assert any(left_out)  # the default leaves frames out here
+    assert ir.frames is not None and after.frames is not None
+    assert np.array_equal(ir.frames.q.view(np.int64), after.frames.q.view(np.int64))

@@ -56,3 +56,26 @@ def test_standing_legs_keep_their_angles_through_the_blend(
         feet = slice(4 * k, 4 * k + 4)
         assert np.abs(soles1[rows, feet] - soles0[rows, feet]).max(initial=0.0) <= 1e-12
     assert kept > 50
+
+
+def test_frames_after_the_blend_posed_from_before_as_forward(tmp_path: Path) -> None:
+    """``smooth._posed_after`` gives ``forward``'s numbers, bit for bit, on frames the blend
+    left alone, frames it changed below a joint with the root put, and frames it moved whole."""
+    path = tmp_path / "walk.mtask"
+    path.write_text(WALK.format(x=350, z=420), encoding="utf-8")
+    ir, _ = compile_on(path, ("male", 95), until="balance")
+    f, skel = ir.frames, ir.skeleton
+    q0, root0, rot = f.q.copy(), f.root_position.copy(), f.root_rotation
+    smooth.smooth_frames(f, smooth.boundaries(ir), skel.lower, skel.upper)
+    q, root = f.q.copy(), f.root_position.copy()
+    rows = np.flatnonzero((q != q0).any(axis=1))
+    assert rows.size > 100
+    q[rows[::3]] = q0[rows[::3]]  # left alone
+    root[rows[::3]] = root0[rows[::3]]
+    root[rows[1::3]] = root0[rows[1::3]]  # the root put: a leg, the trunk... posed again
+    root[rows[2::3], 1] += 1e-3  # the root moved: posed whole
+    before = forward(skel, q0, root0, rot, with_axes=False)
+    got = smooth._posed_after(skel, before, q0, root0, q, root, rot)
+    want = forward(skel, q, root, rot, with_axes=False)
+    assert np.array_equal(got.R.view(np.int64), want.R.view(np.int64))
+    assert np.array_equal(got.p.view(np.int64), want.p.view(np.int64))

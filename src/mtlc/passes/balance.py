@@ -51,6 +51,7 @@ from mtlc.body import (
     site_rotation,
 )
 from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.ik.fast import SerialChain, solve_one
 from mtlc.body.kinematics import repeated_rows, rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import Held, carried_com, held
@@ -1237,20 +1238,64 @@ def pinned_arms_on_branch(
                 seed = frames.q[i].copy()
                 seed[cols] = np.clip(q_start[i, cols] + corr[i - 1], skel.lower[cols],
                                      skel.upper[cols])  # fmt: skip
-                goal = [Goal(hand, position=hands_at[i : i + 1, k])]
                 root, rot = frames.root_position[i : i + 1], frames.root_rotation[i : i + 1]
-                model = prepare(skel, goal, seed[None], root_position=root, root_rotation=rot)
-                res = solve_ta(skel, goal, seed[None], model=model, restarts=0, null_gain=0.0,
-                               tol=2e-4, max_iter=40)  # fmt: skip
-                new = res.q[0, cols] - q_start[i, cols]
+                q_arm, holds = arm_on_site(skel, hand, seed, hands_at[i, k], root, rot)
+                new = q_arm[cols] - q_start[i, cols]
                 if (
-                    res.position_error[0] <= POSITION_TOL
+                    holds
                     and np.abs(new - corr[i - 1]).max() < step
-                    and skel.within_limits(res.q, tol=1e-6)[0]
+                    and skel.within_limits(q_arm[None], tol=1e-6)[0]
                 ):
-                    frames.q[i, cols] = res.q[0, cols]
+                    frames.q[i, cols] = q_arm[cols]
                     corr[i] = new
             i += 1
+
+
+def arm_on_site(
+    skel: Skeleton,
+    hand: str,
+    seed: FloatArray,
+    target: FloatArray,
+    root: FloatArray,
+    rotation: FloatArray,
+) -> tuple[FloatArray, bool]:
+    """One pose's arm solved for its hand at ``target`` from ``seed`` (D,) (the root
+    ``root`` (1, 3), ``rotation`` (1, ...)): the q (D,) that ``solve_ta(..., restarts=0,
+    null_gain=0.0, tol=2e-4, max_iter=40)`` returns, to the bit (the same scalar solve of
+    the same chain), and whether it holds the hand within ``POSITION_TOL``.
+
+    ``pinned_arms_on_branch`` solves thousands of single frames one after another (each
+    seeded by the last): ``solve_ta``'s wrapping (the goals' arrays, the start's checks and
+    the returned pose's errors posed again by the batch model) cost more than the solve, most
+    of which end where they start. The solve's own error of its best pose decides, where it
+    is not within 1e-9 m of ``POSITION_TOL`` (the same forward kinematics as the model's, a
+    few ulps apart); there, and where the arm is no serial chain, ``solve_ta`` itself.
+    """
+    goal = [Goal(hand, position=target[None])]
+    model = prepare(skel, goal, seed[None], root_position=root, root_rotation=rotation)
+    try:
+        chain = SerialChain(model)
+    except ValueError:
+        chain = None
+    if chain is not None:
+        lo, hi = model.lower, model.upper
+        start = np.clip(seed[model.active], lo, hi)  # ``solve_ta``'s start, clipped
+        # restarts=0: the generator is never drawn from
+        qb, err, _, _ = solve_one(
+            chain, target, start, lo, hi, skel.q_comfort[model.active], tol=2e-4,
+            max_iter=40, restarts=0, patience=8, damping=0.02, max_error=0.25, max_step=0.5,
+            null_gain=0.0, rng=_NO_DRAWS,
+        )  # fmt: skip
+        if abs(err - POSITION_TOL) > 1e-9:
+            q = seed.copy()
+            q[model.active] = qb
+            return q, err <= POSITION_TOL
+    res = solve_ta(skel, goal, seed[None], model=model, restarts=0, null_gain=0.0, tol=2e-4,
+                   max_iter=40)  # fmt: skip
+    return res.q[0], bool(res.position_error[0] <= POSITION_TOL)
+
+
+_NO_DRAWS = np.random.default_rng(0)  # the generator of solves that never restart
 
 
 def raw_shares(

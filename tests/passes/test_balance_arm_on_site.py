@@ -9,7 +9,8 @@ import pytest
 
 from mtlc.body import build_manikin, forward, site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
-from mtlc.passes.balance import POSITION_TOL, arm_dofs, arm_on_site
+from mtlc.body.kinematics import quat_to_matrix
+from mtlc.passes.balance import POSITION_TOL, arm_dofs, arm_on_site, root_matrices
 
 SKELS = [build_manikin("gb10000_1988", "female", 5), build_manikin("gb10000_1988", "male", 95)]
 
@@ -48,3 +49,15 @@ def test_arm_on_site_equals_solve_ta(skel, hand) -> None:  # type: ignore[no-unt
         held += got_ok
         moved += not np.array_equal(got_q, seed)
     assert 0 < held < 120 and moved > 0  # both verdicts, and solves that move the arm
+
+
+def test_root_matrices_are_each_rows_own() -> None:
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 17, 300):
+        quat = rng.normal(size=(n, 4))
+        quat[: n // 2] /= np.linalg.norm(quat[: n // 2], axis=1, keepdims=True)
+        whole = root_matrices(quat)
+        for i in range(n):
+            one = quat_to_matrix(quat[i : i + 1])
+            assert whole[i : i + 1].view(np.int64).tolist() == one.view(np.int64).tolist()
+    assert root_matrices(whole) is whole  # matrices pass through

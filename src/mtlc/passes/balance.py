@@ -51,7 +51,8 @@ from mtlc.body import (
     site_rotation,
 )
 from mtlc.body.ik import Goal, prepare, solve_ta
-from mtlc.body.kinematics import repeated_rows, rotate_about
+from mtlc.body.ik.fast import SerialChain, solve_one
+from mtlc.body.kinematics import quat_to_matrix, repeated_rows, rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import Held, carried_com, held
 from mtlc.metrics import (
@@ -487,6 +488,25 @@ def restore_contacts(
     pose: Pose | None = None,
     solve_lost: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were
+    (``_restore_contacts``, unposed)."""
+    q, root, worst, _ = _restore_contacts(
+        ir, q, root_position, root_rotation, feet, hands, pose, solve_lost, None
+    )
+    return q, root, worst
+
+
+def _restore_contacts(
+    ir: MotionIR,
+    q: np.ndarray,
+    root_position: np.ndarray,
+    root_rotation: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    pose: Pose | None,
+    solve_lost: bool,
+    posed: bool | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose | None]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
@@ -494,9 +514,10 @@ def restore_contacts(
     ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3); ``pose``: the
     pose of (q, root_position, root_rotation) if the caller has it (its legs are read). The
     pelvis drops by what straight legs cannot reach. Returns the new q (B, D), root positions
-    and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
-    9 joints of 21): a caller poses the rows it keeps (``restore_contacts_posed``, or
-    ``balance_frames``, which drops the rows that lost their contacts unposed).
+    and each row's worst remaining distance (m), and ``posed`` (True: with the dofs' axes,
+    False: without) the whole body's pose of the result, on which the sole points are checked
+    (None: only the legs are posed, the feet's chains, 9 joints of 21: a caller poses the rows
+    it keeps, or ``balance_frames`` drops the rows that lost their contacts unposed).
 
     The pinned arms are solved first (the arms' and the legs' dofs are apart, and the legs do
     not move a hand): a row whose hand ends over ``POSITION_TOL`` off its site has lost its
@@ -552,7 +573,7 @@ def restore_contacts(
         worst[idx] = np.maximum(worst[idx], np.where(stretched, 1.0, res.position_error))
     legs = np.arange(len(q)) if solve_lost else np.flatnonzero(worst <= POSITION_TOL)
     if legs.size == 0:
-        return q, root, worst
+        return q, root, worst, _posed(skel, q, root, root_rotation, posed)
     sub = legs.size < len(q)
     ql, rl, rotl = (q[legs], root[legs], root_rotation[legs]) if sub else (q, root, root_rotation)
     goals = [
@@ -565,16 +586,33 @@ def restore_contacts(
         orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
     )  # fmt: skip
     q[legs] = res.q
-    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
-        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
-        rel = soles_in_foot[name]
+    # every sole point of both feet at once, from the whole body's pose where the caller wants
+    # it (the same numbers: tests/passes/test_balance_posed_soles.py)
+    soles = [f"{name[0]}_{p}" for name in feet for p in FOOT_POINT_NAMES]
+    out = _posed(skel, q, root, root_rotation, posed)
+    if out is None:
+        now_all = part_site_positions(skel, res.q, rl, rotl, soles)
+    else:
+        now_all = site_positions(skel, take_pose(out, legs) if sub else out, soles)
+    for k, (pos, rot, touch) in enumerate(feet.values()):  # every sole point of a touching foot
+        rel = soles_in_foot[list(feet)[k]]
         if sub:
             pos, rot, touch, rel = pos[legs], rot[legs], touch[legs], rel[legs]
         want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, rel)
-        now = part_site_positions(skel, res.q, rl, rotl, soles)
+        now = now_all[:, k * len(FOOT_POINT_NAMES) : (k + 1) * len(FOOT_POINT_NAMES)]
         err = np.linalg.norm(now - want, axis=-1).max(axis=1)
         worst[legs] = np.maximum(worst[legs], np.where(touch, err, 0.0))
-    return q, root, worst
+    return q, root, worst, out
+
+
+def _posed(
+    skel: Skeleton, q: np.ndarray, root: np.ndarray, rotation: np.ndarray, posed: bool | None
+) -> Pose | None:
+    """The pose of a ``_restore_contacts`` result: none (``posed`` None), with its dofs'
+    axes (True) or without (False)."""
+    if posed is None:
+        return None
+    return forward(skel, q, root, rotation, with_axes=posed)
 
 
 def restore_contacts_posed(
@@ -588,11 +626,15 @@ def restore_contacts_posed(
     with_axes: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
     """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
-    of balancing thousands of frames: callers reuse it instead of recomputing it).
+    of balancing thousands of frames: callers reuse it instead of recomputing it, and the
+    feet's sole points are checked on it, not on a pose of the legs again).
     ``with_axes=False``: the pose without its dofs' axes, for a caller that needs no Jacobian
     (half the forward kinematics)."""
-    q, root, worst = restore_contacts(ir, q, root_position, root_rotation, feet, hands, pose)
-    return q, root, worst, forward(ir.skeleton, q, root, root_rotation, with_axes=with_axes)
+    q, root, worst, out = _restore_contacts(
+        ir, q, root_position, root_rotation, feet, hands, pose, False, with_axes
+    )
+    assert out is not None
+    return q, root, worst, out
 
 
 def lean_trunk(
@@ -1216,6 +1258,7 @@ def pinned_arms_on_branch(
     if len(t) < 2:
         return
     limit = CORRECTED_JOINT_SPEED * np.diff(t) + 1e-9
+    rotations: FloatArray | None = None  # the roots' matrices, once (a solve's own was a fifth)
     for k, hand in enumerate(HANDS):
         pinned = pins[hand]
         cols = np.asarray(arm_dofs(skel, hand), dtype=np.intp)
@@ -1237,20 +1280,73 @@ def pinned_arms_on_branch(
                 seed = frames.q[i].copy()
                 seed[cols] = np.clip(q_start[i, cols] + corr[i - 1], skel.lower[cols],
                                      skel.upper[cols])  # fmt: skip
-                goal = [Goal(hand, position=hands_at[i : i + 1, k])]
-                root, rot = frames.root_position[i : i + 1], frames.root_rotation[i : i + 1]
-                model = prepare(skel, goal, seed[None], root_position=root, root_rotation=rot)
-                res = solve_ta(skel, goal, seed[None], model=model, restarts=0, null_gain=0.0,
-                               tol=2e-4, max_iter=40)  # fmt: skip
-                new = res.q[0, cols] - q_start[i, cols]
+                if rotations is None:
+                    rotations = root_matrices(frames.root_rotation)
+                root, rot = frames.root_position[i : i + 1], rotations[i : i + 1]
+                q_arm, holds = arm_on_site(skel, hand, seed, hands_at[i, k], root, rot)
+                new = q_arm[cols] - q_start[i, cols]
                 if (
-                    res.position_error[0] <= POSITION_TOL
+                    holds
                     and np.abs(new - corr[i - 1]).max() < step
-                    and skel.within_limits(res.q, tol=1e-6)[0]
+                    and skel.within_limits(q_arm[None], tol=1e-6)[0]
                 ):
-                    frames.q[i, cols] = res.q[0, cols]
+                    frames.q[i, cols] = q_arm[cols]
                     corr[i] = new
             i += 1
+
+
+def arm_on_site(
+    skel: Skeleton,
+    hand: str,
+    seed: FloatArray,
+    target: FloatArray,
+    root: FloatArray,
+    rotation: FloatArray,
+) -> tuple[FloatArray, bool]:
+    """One pose's arm solved for its hand at ``target`` from ``seed`` (D,) (the root
+    ``root`` (1, 3), ``rotation`` (1, ...)): the q (D,) that ``solve_ta(..., restarts=0,
+    null_gain=0.0, tol=2e-4, max_iter=40)`` returns, to the bit (the same scalar solve of
+    the same chain), and whether it holds the hand within ``POSITION_TOL``.
+
+    ``pinned_arms_on_branch`` solves thousands of single frames one after another (each
+    seeded by the last): ``solve_ta``'s wrapping (the goals' arrays, the start's checks and
+    the returned pose's errors posed again by the batch model) cost more than the solve, most
+    of which end where they start. The solve's own error of its best pose decides, where it
+    is not within 1e-9 m of ``POSITION_TOL`` (the same forward kinematics as the model's, a
+    few ulps apart); there, and where the arm is no serial chain, ``solve_ta`` itself.
+    """
+    goal = [Goal(hand, position=target[None])]
+    model = prepare(skel, goal, seed[None], root_position=root, root_rotation=rotation)
+    try:
+        chain = SerialChain(model)
+    except ValueError:
+        chain = None
+    if chain is not None:
+        lo, hi = model.lower, model.upper
+        start = np.clip(seed[model.active], lo, hi)  # ``solve_ta``'s start, clipped
+        # restarts=0: the generator is never drawn from
+        qb, err, _, _ = solve_one(
+            chain, target, start, lo, hi, skel.q_comfort[model.active], tol=2e-4,
+            max_iter=40, restarts=0, patience=8, damping=0.02, max_error=0.25, max_step=0.5,
+            null_gain=0.0, rng=_NO_DRAWS,
+        )  # fmt: skip
+        if abs(err - POSITION_TOL) > 1e-9:
+            q = seed.copy()
+            q[model.active] = qb
+            return q, err <= POSITION_TOL
+    res = solve_ta(skel, goal, seed[None], model=model, restarts=0, null_gain=0.0, tol=2e-4,
+                   max_iter=40)  # fmt: skip
+    return res.q[0], bool(res.position_error[0] <= POSITION_TOL)
+
+
+def root_matrices(rotation: FloatArray) -> FloatArray:
+    """Root rotations (N, 4) quaternions or (N, 3, 3) as matrices: row by row what the
+    kinematics make of each row alone (``quat_to_matrix`` is elementwise but for each
+    quaternion's own norm; tests/passes/test_balance_arm_on_site.py)."""
+    return quat_to_matrix(rotation) if rotation.shape[-1] == 4 else rotation
+
+
+_NO_DRAWS = np.random.default_rng(0)  # the generator of solves that never restart
 
 
 def raw_shares(

@@ -471,13 +471,21 @@ class Solves:
     limbs' angles) is carried over from the question's pose, as the solvers carry it."""
 
     skel: Skeleton  # kept alive: the keys hold its id
-    keys: dict[Any, tuple[ChainSolve, dict[int, list[float]]]] = dataclasses.field(
+    keys: dict[Any, tuple[ChainSolve, dict[int, tuple[list[float], float]]]] = dataclasses.field(
         default_factory=dict
     )
     rows: dict[Any, FloatArray] = dataclasses.field(default_factory=dict)
 
+    paths: dict[tuple[str, ...], list[int]] = dataclasses.field(default_factory=dict)
+
     def path_dofs(self, sites: list[str]) -> list[int]:
         """The dofs of the joints from the root to the sites' joints (all a solve reads)."""
+        found = self.paths.get(tuple(sites))
+        if found is None:
+            found = self.paths[tuple(sites)] = self._path_dofs(sites)
+        return found
+
+    def _path_dofs(self, sites: list[str]) -> list[int]:
         skel, dofs = self.skel, set()
         for site in sites:
             j = skel.joint_index(skel.site(site).joint)
@@ -547,23 +555,40 @@ def _chain(
         kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
         targets = np.concatenate([hands[i], tips[i]])
         solve = _key_solver(skel, model, scalar, goals, targets, prev, (solves, reach, root), **kw)
-        q = solve(0)
-        err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-        if err > TOLERANCE:
+        key_goals = [hands[i : i + 1], tips[i : i + 1]]
+        q, fast = solve(0)
+        if _short(fast, state, q, root, sites, key_goals):
             reached = False
             # restarts are kept only where they reach: not tried where no pose of the chain
             # can (a fastener metres away: two restarts were 80 % of a stroke's solve)
             if not _out_of_reach(scalar, model, prev, targets):
-                q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
+                q2, fast2 = solve(2)  # goes on from the warm start's stall (the same iterates)
                 # most restarts find nothing nearer: the same pose is as short, not measured
-                if not np.array_equal(q2, q):
-                    err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])
-                    if err2[0] <= TOLERANCE:  # a restart short too is no better: another branch
-                        q, reached = q2, True
+                # (a restart short too is no better: another branch)
+                if not np.array_equal(q2, q) and not _short(
+                    fast2, state, q2, root, sites, key_goals
+                ):
+                    q, reached = q2, True
             if until_short and not reached:
                 return None
         out[i] = prev = q[0]
     return out
+
+
+SHORT_MARGIN = 1e-7  # m: the scalar chain's distance decides "short" this far from the tolerance
+
+
+def _short(
+    fast: float | None, state: PoseState, q: FloatArray, root: Any, sites: list[str],
+    goals: list[FloatArray],
+) -> bool:  # fmt: skip
+    """Whether a key's pose ``q`` (1, D) is further than ``TOLERANCE`` from its ``goals``: by
+    the scalar chain's own distance at the pose (``fast``; Python floats, within 1e-15 m of
+    forward kinematics) unless that is within ``SHORT_MARGIN`` of the tolerance, else by
+    ``_errors`` (a forward kinematics a key was a tenth of the tool pass's time)."""
+    if fast is not None and abs(fast - TOLERANCE) > SHORT_MARGIN:
+        return fast > TOLERANCE
+    return bool(_errors(state, q, root, sites, goals)[0] > TOLERANCE)
 
 
 def _scalar_chain(
@@ -600,14 +625,15 @@ def _key_solver(
     skel: Skeleton, model: ChainModel, scalar: ScalarChain | None, goals: list[Goal],
     targets: FloatArray, prev: FloatArray, memo: tuple[Solves | None, str, Any] | None = None,
     **kw: Any,
-) -> Callable[[int], FloatArray]:  # fmt: skip
+) -> Callable[[int], tuple[FloatArray, float | None]]:  # fmt: skip
     """A key's solve as a function of its restarts: (1, D) ``solve_ta(skel, goals, prev[None],
     restarts=restarts, **kw).q``, by the scalar chain when the model describes ``prev``'s body
     (``solve_ta`` would rebuild it otherwise), which a call with more restarts resumes where
-    the last one stopped instead of repeating its warm-started attempt."""
+    the last one stopped instead of repeating its warm-started attempt; and the scalar
+    chain's largest distance of the sites to their goals there (None on the general path)."""
     if scalar is None or not np.array_equal(prev[model.baked], model.q_base[0, model.baked]):
-        return lambda restarts: solve_ta(skel, goals, prev[None], model=model,
-                                         restarts=restarts, **kw).q  # fmt: skip
+        return lambda restarts: (solve_ta(skel, goals, prev[None], model=model,
+                                          restarts=restarts, **kw).q, None)  # fmt: skip
     act = model.active
 
     def fresh() -> ChainSolve:
@@ -617,7 +643,7 @@ def _key_solver(
     solves, reach, root = memo if memo is not None else (None, "", None)
     if solves is None:
         solver = fresh()
-        runs: dict[int, list[float]] = {}
+        runs: dict[int, tuple[list[float], float]] = {}
     else:  # the scalar chain reads the base pose's path, the key's start its active angles
         path = solves.path_dofs(list(model.sites))
         key = _problem_key(reach, list(model.sites), root, model, model.q_base[0, path],
@@ -628,15 +654,15 @@ def _key_solver(
             found = solves.keep(solves.keys)[key] = (fresh(), {})
         solver, runs = found
 
-    def solve(restarts: int) -> FloatArray:
+    def solve(restarts: int) -> tuple[FloatArray, float | None]:
         nonlocal solver
         if restarts not in runs:
             if any(r > restarts for r in runs):  # a run resumes: it cannot go back
                 solver = fresh()
-            runs[restarts] = list(solver.run(restarts))
+            runs[restarts] = (list(solver.run(restarts)), solver.best_err)
         q = prev[None].copy()
-        q[0, act] = runs[restarts]
-        return q
+        q[0, act] = runs[restarts][0]
+        return q, runs[restarts][1]
 
     return solve
 

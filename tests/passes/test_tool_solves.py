@@ -103,3 +103,22 @@ def test_no_still_trunk_solve_beyond_reach(tmp_path: Path, monkeypatch: pytest.M
     monkeypatch.setattr(tool_pass, "_beyond_girdle", lambda *a: False)
     solved = _run(tmp_path)
     _assert_same(skipped, solved)
+
+
+def test_remembered_curves_and_shares_pace_a_stroke_as_fresh_ones() -> None:
+    # a series' strokes share their phases' curves and windows (``_stroke_shares``): the
+    # paced keyframes of a stroke at another start equal those built afresh, to the bit
+    frac, _, lift = tool_pass.stroke_plan(0.3, 1.0, False, 0.12)
+    rng = np.random.default_rng(5)
+    q = np.cumsum(rng.normal(0.0, 0.05, (len(frac), 6)), axis=0)
+    speed = np.full(6, 3.0)
+    cache: dict[str, Any] = {}
+    curves: dict[Any, Any] = {}
+    for start in (0.0, 1.37, 2.911):
+        windows = tool_pass._stroke_shares(cache, frac, q, True, speed)
+        assert windows == tool_pass.phase_shares(frac, q, True, speed)
+        got = tool_pass.paced_stroke(frac, q, start, start + 0.8, True, windows, curves)
+        want = tool_pass.paced_stroke(frac, q, start, start + 0.8, True, windows)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    # the seat is a line (two keys); the swing and the return are curves
+    assert lift.max() > 0 and len(curves) == 2 and len(cache["passes.tool.shares"]) == 1

@@ -239,16 +239,26 @@ NEED_SAMPLES = 241  # points of each phase's path at which its joint speed is me
 
 
 def _phase_path(
-    frac: FloatArray, q: FloatArray, k: int, lifted: bool, tau: FloatArray
-) -> FloatArray:
+    frac: FloatArray, q: FloatArray, k: int, lifted: bool, tau: FloatArray,
+    curves: dict[Any, Any] | None = None,
+) -> FloatArray:  # fmt: skip
     """(len(tau), D) poses of phase ``k`` at its normalised times ``tau``: its keys joined by
-    PCHIP in the phase's progress (minimum jerk; a wrench's lifted return on a placing clock)."""
+    PCHIP in the phase's progress (minimum jerk; a wrench's lifted return on a placing clock).
+    ``curves``: the PCHIP curves built so far, by their exact keys (the strokes of a series
+    repeat them)."""
     a, b = PHASES[k]
     keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
     u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
     along = (frac[keys] - a) / (b - a)
     if len(keys) > 2:
-        return pchip(along, q[keys])(u)
+        if curves is None:
+            return pchip(along, q[keys])(u)
+        key = (k, array_key(frac), array_key(q))
+        if key not in curves:
+            if len(curves) >= SHARES_KEPT:
+                curves.clear()
+            curves[key] = pchip(along, q[keys])
+        return curves[key](u)  # type: ignore[no-any-return]
     return q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
 
 
@@ -276,6 +286,23 @@ def phase_shares(
     return tuple((float(edges[k]), float(edges[k + 1])) for k in range(len(PHASES)))
 
 
+SHARES_KEPT = 4096  # strokes' phase windows a compile remembers
+
+
+def _stroke_shares(
+    cache: dict[str, Any], frac: FloatArray, q: FloatArray, lifted: bool, speed: FloatArray
+) -> tuple[tuple[float, float], ...]:
+    """``phase_shares``, once per compile for the exact same stroke: the middle strokes of a
+    series repeat their keys and time (a 90 rad turn is 86 strokes of one solved stroke)."""
+    found: dict[Any, tuple[tuple[float, float], ...]] = cache.setdefault("passes.tool.shares", {})
+    key = (array_key(frac), array_key(q), lifted, array_key(speed))
+    if key not in found:
+        if len(found) >= SHARES_KEPT:
+            found.clear()
+        found[key] = phase_shares(frac, q, lifted, speed)
+    return found[key]
+
+
 def paced_stroke(
     frac: FloatArray,
     q: FloatArray,
@@ -283,6 +310,7 @@ def paced_stroke(
     end: float,
     lifted: bool,
     windows: tuple[tuple[float, float], ...] = PHASES,
+    curves: dict[Any, Any] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Dense keyframes (times, (N, D) poses) of a stroke whose keys ``q`` sit at ``frac``: each
     phase (seat, swing, return) one movement from rest to rest, in its window of the stroke's
@@ -290,7 +318,8 @@ def paced_stroke(
     progress along the hand's path (the keys' fractions inside the phase) by the minimum-jerk
     profile; a wrench's ``lifted`` return runs its arch (already a bell in its own parameter)
     on a placing clock (``mtlc.passes.profile.placing_clock``), so the tool comes back onto the
-    fastener slowly. Keys every internal frame: interpolation cannot undo that."""
+    fastener slowly. Keys every internal frame: interpolation cannot undo that. ``curves``:
+    the phases' PCHIP curves built so far (``_phase_path``)."""
     times, poses = [np.array([start])], [q[:1]]
     for k, (a, b) in enumerate(windows):
         t0, t1 = start + (end - start) * a, start + (end - start) * b
@@ -298,7 +327,7 @@ def paced_stroke(
         t = np.unique(np.round(np.r_[grid / INTERNAL_FPS, t1], 9))
         t = t[t > t0 + 1e-9]
         times.append(t)
-        poses.append(_phase_path(frac, q, k, lifted, (t - t0) / (t1 - t0)))
+        poses.append(_phase_path(frac, q, k, lifted, (t - t0) / (t1 - t0), curves))
     return np.concatenate(times), np.concatenate(poses)
 
 
@@ -975,8 +1004,9 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     lifted = bool(sol.lift.max() > 0)
     speed = np.array([STROKE_TURN_SPEED if any(d in nm for d in TURNING_DOFS)
                       else STROKE_JOINT_SPEED for nm in names]) * (seg.end - seg.start)  # fmt: skip
-    windows = phase_shares(sol.frac, q[:, idx], lifted, speed)
-    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, lifted, windows)
+    windows = _stroke_shares(ctx.cache, sol.frac, q[:, idx], lifted, speed)
+    curves = ctx.cache.setdefault("passes.tool.curves", {})
+    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, lifted, windows, curves)
     # a dof at its stop stays there (the last stroke's blend to the reach pose pushed one past)
     poses = np.clip(poses, state.skel.lower[idx], state.skel.upper[idx])
     seg.keyframes = Keyframes(time=times, dofs=names, q=poses)

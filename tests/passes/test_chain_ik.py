@@ -168,3 +168,60 @@ def test_no_pose_of_the_chain_is_beyond_its_reach(spec, reach) -> None:
     assert chain.beyond(np.concatenate([hand, past]).tolist(), 0.005)
     assert not chain.beyond(np.concatenate([hand, past]).tolist(), 0.02)
     assert chain.beyond(np.concatenate([hand + 5.0, tip]).tolist(), 1e-3)
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_the_best_error_is_the_distance_at_the_best_pose(spec, reach) -> None:
+    """``ChainSolve.best_err`` (``tool._short`` decides with it) is the sites' largest distance
+    to their targets at the angles ``run`` returns, as forward kinematics measures it."""
+    from mtlc.passes.chain_ik import ChainSolve
+
+    skel, sites, q0, model, chain, hand, tip = wrench_chain(spec, reach)
+    act = model.active
+    rng = np.random.default_rng(17)
+    for k in range(8):
+        shift = rng.normal(0.0, 0.05 + 0.1 * k, 3)  # near to out of reach
+        start = q0[act] + rng.normal(0.0, 0.05, len(act))
+        solver = ChainSolve(chain, np.concatenate([hand + shift, tip + shift]).tolist(), start,
+                            model.lower, model.upper, skel.q_comfort[act], tol=2e-4)  # fmt: skip
+        for restarts in (0, 2):
+            q = q0.copy()
+            q[act] = solver.run(restarts)
+            pose = forward(skel, q[None], ROOT[0][None], ROOT[1][None])
+            got = site_positions(skel, pose, sites)[0]
+            want = np.array([hand + shift, tip + shift])
+            dist = float(np.linalg.norm(got - want, axis=1).max())
+            assert abs(solver.best_err - dist) <= 1e-12
+
+
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_a_row_solves_alone_as_in_a_batch(reach) -> None:
+    """Each row of ``solve_rows`` is its own arithmetic: solved alone or with others, to the
+    bit (``tool._rows_solved`` looks rows up one by one)."""
+    from mtlc.passes.chain_ik import RowChain, solve_rows
+
+    skel = with_tools(build_manikin("gb10000_1988", "female", 5), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    rng = np.random.default_rng(19)
+    b = 12
+    q0 = np.tile(np.asarray(skel.q_comfort, dtype=float), (b, 1))
+    rp, rr = np.tile(ROOT[0], (b, 1)), np.tile(ROOT[1], (b, 1))
+    model = prepare(skel, sites, q0, reach=reach, root_position=rp, root_rotation=rr)
+    act = model.active
+    targets = site_positions(skel, forward(skel, q0, rp, rr), sites) + rng.normal(
+        0.0, 0.2, (b, 1, 3)
+    )
+    start = q0.copy()
+    start[:, act] += rng.normal(0.0, 0.05, (b, len(act)))
+    chain = RowChain(skel, model, ROOT)
+
+    def solve(rows):  # type: ignore[no-untyped-def]
+        return solve_rows(chain, targets.reshape(b, 6)[rows], start[rows], model.lower,
+                          model.upper, skel.q_comfort[act], tol=2e-4, null_gain=0.0)  # fmt: skip
+
+    together = solve(np.arange(b))
+    assert not np.array_equal(together, start)
+    for i in range(b):
+        assert np.array_equal(solve([i])[0], together[i])
+    assert np.array_equal(solve([3, 7, 1]), together[[3, 7, 1]])

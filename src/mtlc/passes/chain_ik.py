@@ -118,6 +118,7 @@ class ChainSolve:
         self.cf = [float(v) for v in comfort]
         self.q = [min(max(float(v), self.lo[i]), self.hi[i]) for i, v in enumerate(q0)]
         self.best_q, self.best_score = list(self.q), math.inf
+        self.best_err = math.inf  # the sites' largest distance to their targets at best_q
         self.n_restart = self.attempt_it = self.since = 0
         self.attempt_best = math.inf
         self.stalled = False  # stopped by the restart limit at a stall (not converged)
@@ -131,7 +132,7 @@ class ChainSolve:
         chain, targets, lo, hi, cf = self.chain, self.targets, self.lo, self.hi, self.cf
         tol, n, m = self.tol, chain.n, len(targets)
         damping = DAMPING * DAMPING * np.eye(m)
-        q, best_q, best_score = self.q, self.best_q, self.best_score
+        q, best_q, best_score, best_err = self.q, self.best_q, self.best_score, self.best_err
         n_restart, attempt_it, since = self.n_restart, self.attempt_it, self.since
         attempt_best = self.attempt_best
         resume_restart = self.stalled  # the last call stopped here, at a stall: restart
@@ -143,7 +144,7 @@ class ChainSolve:
                        for s in range(0, m, 3)]  # fmt: skip
                 score = max(0.0, *nrm) / tol
                 if score < best_score:
-                    best_score, best_q = score, list(q)
+                    best_score, best_q, best_err = score, list(q), max(0.0, *nrm)
                 done = max(0.0, *nrm) <= tol
                 if score < 0.9 * attempt_best:
                     attempt_best, since = score, 0
@@ -184,7 +185,7 @@ class ChainSolve:
             cap = min(1.0, MAX_STEP / max(big, 1e-300))
             q = [q[i] + (min(max(q[i] + dq[i] * cap, lo[i]), hi[i]) - q[i]) for i in range(n)]
             attempt_it += 1
-        self.q, self.best_q, self.best_score = q, best_q, best_score
+        self.q, self.best_q, self.best_score, self.best_err = q, best_q, best_score, best_err
         self.n_restart, self.attempt_it, self.since = n_restart, attempt_it, since
         self.attempt_best = attempt_best
         return best_q

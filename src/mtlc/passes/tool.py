@@ -239,16 +239,26 @@ NEED_SAMPLES = 241  # points of each phase's path at which its joint speed is me
 
 
 def _phase_path(
-    frac: FloatArray, q: FloatArray, k: int, lifted: bool, tau: FloatArray
-) -> FloatArray:
+    frac: FloatArray, q: FloatArray, k: int, lifted: bool, tau: FloatArray,
+    curves: dict[Any, Any] | None = None,
+) -> FloatArray:  # fmt: skip
     """(len(tau), D) poses of phase ``k`` at its normalised times ``tau``: its keys joined by
-    PCHIP in the phase's progress (minimum jerk; a wrench's lifted return on a placing clock)."""
+    PCHIP in the phase's progress (minimum jerk; a wrench's lifted return on a placing clock).
+    ``curves``: the PCHIP curves built so far, by their exact keys (the strokes of a series
+    repeat them)."""
     a, b = PHASES[k]
     keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
     u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
     along = (frac[keys] - a) / (b - a)
     if len(keys) > 2:
-        return pchip(along, q[keys])(u)
+        if curves is None:
+            return pchip(along, q[keys])(u)
+        key = (k, array_key(frac), array_key(q))
+        if key not in curves:
+            if len(curves) >= SHARES_KEPT:
+                curves.clear()
+            curves[key] = pchip(along, q[keys])
+        return curves[key](u)  # type: ignore[no-any-return]
     return q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
 
 
@@ -276,6 +286,23 @@ def phase_shares(
     return tuple((float(edges[k]), float(edges[k + 1])) for k in range(len(PHASES)))
 
 
+SHARES_KEPT = 4096  # strokes' phase windows a compile remembers
+
+
+def _stroke_shares(
+    cache: dict[str, Any], frac: FloatArray, q: FloatArray, lifted: bool, speed: FloatArray
+) -> tuple[tuple[float, float], ...]:
+    """``phase_shares``, once per compile for the exact same stroke: the middle strokes of a
+    series repeat their keys and time (a 90 rad turn is 86 strokes of one solved stroke)."""
+    found: dict[Any, tuple[tuple[float, float], ...]] = cache.setdefault("passes.tool.shares", {})
+    key = (array_key(frac), array_key(q), lifted, array_key(speed))
+    if key not in found:
+        if len(found) >= SHARES_KEPT:
+            found.clear()
+        found[key] = phase_shares(frac, q, lifted, speed)
+    return found[key]
+
+
 def paced_stroke(
     frac: FloatArray,
     q: FloatArray,
@@ -283,6 +310,7 @@ def paced_stroke(
     end: float,
     lifted: bool,
     windows: tuple[tuple[float, float], ...] = PHASES,
+    curves: dict[Any, Any] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Dense keyframes (times, (N, D) poses) of a stroke whose keys ``q`` sit at ``frac``: each
     phase (seat, swing, return) one movement from rest to rest, in its window of the stroke's
@@ -290,7 +318,8 @@ def paced_stroke(
     progress along the hand's path (the keys' fractions inside the phase) by the minimum-jerk
     profile; a wrench's ``lifted`` return runs its arch (already a bell in its own parameter)
     on a placing clock (``mtlc.passes.profile.placing_clock``), so the tool comes back onto the
-    fastener slowly. Keys every internal frame: interpolation cannot undo that."""
+    fastener slowly. Keys every internal frame: interpolation cannot undo that. ``curves``:
+    the phases' PCHIP curves built so far (``_phase_path``)."""
     times, poses = [np.array([start])], [q[:1]]
     for k, (a, b) in enumerate(windows):
         t0, t1 = start + (end - start) * a, start + (end - start) * b
@@ -298,7 +327,7 @@ def paced_stroke(
         t = np.unique(np.round(np.r_[grid / INTERNAL_FPS, t1], 9))
         t = t[t > t0 + 1e-9]
         times.append(t)
-        poses.append(_phase_path(frac, q, k, lifted, (t - t0) / (t1 - t0)))
+        poses.append(_phase_path(frac, q, k, lifted, (t - t0) / (t1 - t0), curves))
     return np.concatenate(times), np.concatenate(poses)
 
 
@@ -324,6 +353,7 @@ def _solve_keys(
     clock: FloatArray,
     first: str = "arm",
     trunk: FloatArray | None = None,
+    solves: Solves | None = None,
 ) -> tuple[FloatArray, str, FloatArray, FloatArray | None]:
     """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
     (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
@@ -336,15 +366,24 @@ def _solve_keys(
     sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
 
     def solved(start: FloatArray, reach: str) -> tuple[FloatArray, FloatArray]:
-        q = _chain(state, sites, hands, tips, start, root, reach)
+        q = _chain(state, sites, hands, tips, start, root, reach, solves=solves)
         assert q is not None  # (only a chain ``until_short`` stops)
         q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
-        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, reach, clock[1:])
+        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, reach, clock[1:],
+                          solves)  # fmt: skip
         return q, _errors(state, q, root, sites, [hands, tips])
 
+    def girdle(start: FloatArray) -> FloatArray | None:
+        """The keys solved on the still trunk of ``start``, if every key may be reached: a
+        key beyond the girdle chain's reach cannot be (its solution would be dropped)."""
+        if _beyond_girdle(state, sites, hands, tips, start, root):
+            return None
+        q, err = solved(start, "girdle")
+        return q if err.max() <= TOLERANCE else None
+
     if trunk is not None:
-        q, err = solved(_with_trunk(state, q0, trunk), "girdle")
-        if err.max() <= TOLERANCE:
+        q = girdle(_with_trunk(state, q0, trunk))
+        if q is not None:
             return _answer(state, seg, tips, root, q, "girdle", trunk)
     tried: dict[str, tuple[FloatArray, FloatArray]] = {}
     best, reach = None, "arm"
@@ -360,7 +399,7 @@ def _solve_keys(
 
         def reaches(t: FloatArray) -> bool:
             q = _chain(state, sites, hands, tips, _with_trunk(state, q0, t), root, "girdle",
-                       until_short=True)  # fmt: skip
+                       until_short=True, solves=solves)  # fmt: skip
             if q is None:
                 return False
             reached = _errors(state, q, root, sites, [hands, tips]).max() <= TOLERANCE
@@ -368,10 +407,30 @@ def _solve_keys(
 
         lean = tried["torso"][0][int(np.argmax(tried["arm"][1])), idx]
         still = _frozen_trunk(reaches, q0, idx, lean)
-        q, err = solved(_with_trunk(state, q0, still), "girdle")
-        if err.max() <= TOLERANCE:
+        q = girdle(_with_trunk(state, q0, still))
+        if q is not None:
             return _answer(state, seg, tips, root, q, "girdle", still)
     return _answer(state, seg, tips, root, best[0], reach, None)
+
+
+BEYOND_MARGIN = 1e-6  # m past the tolerance: the trunk's last bits moving in ``_even_out``
+
+
+def _beyond_girdle(
+    state: PoseState, sites: list[str], hands: FloatArray, tips: FloatArray, start: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+) -> bool:  # fmt: skip
+    """Whether some key's grip or tip is further from the clavicle than the arm and the tool
+    laid end to end, past ``TOLERANCE``: no pose on ``start``'s still trunk reaches it, so the
+    girdle's solve (a chain and ``EVEN_ROUNDS`` rounds, a quarter of a stroke's solve on a
+    fastener out of reach) would be dropped. False where the scalar chain does not apply."""
+    model = prepare(state.skel, sites, start[None], reach="girdle", root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
+    scalar = _scalar_chain(state.skel, model, root)
+    if scalar is None:
+        return False
+    targets = np.concatenate([hands, tips], axis=1)
+    return any(scalar.beyond(t, TOLERANCE + BEYOND_MARGIN) for t in targets)
 
 
 def _answer(
@@ -425,6 +484,72 @@ def _frozen_trunk(
     return q0[idx] + hi * (lean - q0[idx])
 
 
+REMEMBER_SOLVES = True  # tests turn it off to check the remembered solves equal fresh ones
+SOLVES_REMEMBERED = 20_000  # keys' and rows' solves a compile remembers (~1 KB each)
+
+
+@dataclasses.dataclass
+class Solves:
+    """The key and row solves of a compile's strokes by their exact question (``_chain``'s
+    keys, ``_even_out``'s rows). A loop that turns the same fastener again after the other
+    hand moved (``for x in [s0, s1] { carry(right, x) turn_fastener(left, ...) }``) asks
+    every question again with another pose of the other arm, which no solve reads: a key's
+    or a row's solve reads only the dofs of the joints from the root to its sites (the
+    chain's frames, ``forward_part``) and its own arguments, and each row's solve is its own
+    arithmetic (the same numbers alone or in a batch). What it does not read (the other
+    limbs' angles) is carried over from the question's pose, as the solvers carry it."""
+
+    skel: Skeleton  # kept alive: the keys hold its id
+    keys: dict[Any, tuple[ChainSolve, dict[int, tuple[list[float], float]]]] = dataclasses.field(
+        default_factory=dict
+    )
+    rows: dict[Any, FloatArray] = dataclasses.field(default_factory=dict)
+
+    paths: dict[tuple[str, ...], list[int]] = dataclasses.field(default_factory=dict)
+
+    def path_dofs(self, sites: list[str]) -> list[int]:
+        """The dofs of the joints from the root to the sites' joints (all a solve reads)."""
+        found = self.paths.get(tuple(sites))
+        if found is None:
+            found = self.paths[tuple(sites)] = self._path_dofs(sites)
+        return found
+
+    def _path_dofs(self, sites: list[str]) -> list[int]:
+        skel, dofs = self.skel, set()
+        for site in sites:
+            j = skel.joint_index(skel.site(site).joint)
+            while j >= 0:
+                s = int(skel.joint_dof_start[j])
+                dofs.update(range(s, s + int(skel.joint_dof_count[j])))
+                j = int(skel.parent[j])
+        return sorted(dofs)
+
+    def keep(self, store: dict[Any, Any]) -> dict[Any, Any]:
+        if len(store) >= SOLVES_REMEMBERED:
+            store.clear()
+        return store
+
+
+def _solves(cache: dict[str, Any], skel: Skeleton) -> Solves:
+    """The compile's ``Solves`` for this skeleton."""
+    found: dict[int, Solves] = cache.setdefault("passes.tool.solves", {})
+    if id(skel) not in found:
+        found[id(skel)] = Solves(skel)
+    return found[id(skel)]
+
+
+def _problem_key(
+    reach: str, sites: list[str], root: tuple[FloatArray, FloatArray], model: ChainModel,
+    q_path: FloatArray, lower: Any, upper: Any, comfort: Any, *rest: Any,
+) -> tuple[Any, ...]:  # fmt: skip
+    """The exact key of a chain solve: everything its arithmetic reads."""
+    return (
+        reach, tuple(sites), tuple(model.sites), array_key(root[0]), array_key(root[1]),
+        array_key(model.active), array_key(q_path), array_key(lower), array_key(upper),
+        array_key(comfort), *rest,
+    )  # fmt: skip
+
+
 def _chain(
     state: PoseState,
     sites: list[str],
@@ -434,6 +559,7 @@ def _chain(
     root: tuple[FloatArray, FloatArray],
     reach: str,
     until_short: bool = False,
+    solves: Solves | None = None,
 ) -> FloatArray | None:
     """(K, D) keyframes solved one after the other, each from the one before (the first from
     ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
@@ -457,24 +583,41 @@ def _chain(
         ]
         kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
         targets = np.concatenate([hands[i], tips[i]])
-        solve = _key_solver(skel, model, scalar, goals, targets, prev, **kw)
-        q = solve(0)
-        err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-        if err > TOLERANCE:
+        solve = _key_solver(skel, model, scalar, goals, targets, prev, (solves, reach, root), **kw)
+        key_goals = [hands[i : i + 1], tips[i : i + 1]]
+        q, fast = solve(0)
+        if _short(fast, state, q, root, sites, key_goals):
             reached = False
             # restarts are kept only where they reach: not tried where no pose of the chain
             # can (a fastener metres away: two restarts were 80 % of a stroke's solve)
             if not _out_of_reach(scalar, model, prev, targets):
-                q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
+                q2, fast2 = solve(2)  # goes on from the warm start's stall (the same iterates)
                 # most restarts find nothing nearer: the same pose is as short, not measured
-                if not np.array_equal(q2, q):
-                    err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])
-                    if err2[0] <= TOLERANCE:  # a restart short too is no better: another branch
-                        q, reached = q2, True
+                # (a restart short too is no better: another branch)
+                if not np.array_equal(q2, q) and not _short(
+                    fast2, state, q2, root, sites, key_goals
+                ):
+                    q, reached = q2, True
             if until_short and not reached:
                 return None
         out[i] = prev = q[0]
     return out
+
+
+SHORT_MARGIN = 1e-7  # m: the scalar chain's distance decides "short" this far from the tolerance
+
+
+def _short(
+    fast: float | None, state: PoseState, q: FloatArray, root: Any, sites: list[str],
+    goals: list[FloatArray],
+) -> bool:  # fmt: skip
+    """Whether a key's pose ``q`` (1, D) is further than ``TOLERANCE`` from its ``goals``: by
+    the scalar chain's own distance at the pose (``fast``; Python floats, within 1e-15 m of
+    forward kinematics) unless that is within ``SHORT_MARGIN`` of the tolerance, else by
+    ``_errors`` (a forward kinematics a key was a tenth of the tool pass's time)."""
+    if fast is not None and abs(fast - TOLERANCE) > SHORT_MARGIN:
+        return fast > TOLERANCE
+    return bool(_errors(state, q, root, sites, goals)[0] > TOLERANCE)
 
 
 def _scalar_chain(
@@ -509,23 +652,46 @@ def _row_chain(
 
 def _key_solver(
     skel: Skeleton, model: ChainModel, scalar: ScalarChain | None, goals: list[Goal],
-    targets: FloatArray, prev: FloatArray, **kw: Any,
-) -> Callable[[int], FloatArray]:  # fmt: skip
+    targets: FloatArray, prev: FloatArray, memo: tuple[Solves | None, str, Any] | None = None,
+    **kw: Any,
+) -> Callable[[int], tuple[FloatArray, float | None]]:  # fmt: skip
     """A key's solve as a function of its restarts: (1, D) ``solve_ta(skel, goals, prev[None],
     restarts=restarts, **kw).q``, by the scalar chain when the model describes ``prev``'s body
     (``solve_ta`` would rebuild it otherwise), which a call with more restarts resumes where
-    the last one stopped instead of repeating its warm-started attempt."""
+    the last one stopped instead of repeating its warm-started attempt; and the scalar
+    chain's largest distance of the sites to their goals there (None on the general path)."""
     if scalar is None or not np.array_equal(prev[model.baked], model.q_base[0, model.baked]):
-        return lambda restarts: solve_ta(skel, goals, prev[None], model=model,
-                                         restarts=restarts, **kw).q  # fmt: skip
+        return lambda restarts: (solve_ta(skel, goals, prev[None], model=model,
+                                          restarts=restarts, **kw).q, None)  # fmt: skip
     act = model.active
-    solver = ChainSolve(scalar, targets.tolist(), prev[act], model.lower, model.upper,
-                        skel.q_comfort[act], tol=kw["tol"])  # fmt: skip
 
-    def solve(restarts: int) -> FloatArray:
+    def fresh() -> ChainSolve:
+        return ChainSolve(scalar, targets.tolist(), prev[act], model.lower, model.upper,
+                          skel.q_comfort[act], tol=kw["tol"])  # fmt: skip
+
+    solves, reach, root = memo if memo is not None else (None, "", None)
+    if solves is None:
+        solver = fresh()
+        runs: dict[int, tuple[list[float], float]] = {}
+    else:  # the scalar chain reads the base pose's path, the key's start its active angles
+        path = solves.path_dofs(list(model.sites))
+        key = _problem_key(reach, list(model.sites), root, model, model.q_base[0, path],
+                           model.lower, model.upper, skel.q_comfort[act], array_key(targets),
+                           array_key(prev[act]), kw["tol"])  # fmt: skip
+        found = solves.keys.get(key)
+        if found is None:
+            found = solves.keep(solves.keys)[key] = (fresh(), {})
+        solver, runs = found
+
+    def solve(restarts: int) -> tuple[FloatArray, float | None]:
+        nonlocal solver
+        if restarts not in runs:
+            if any(r > restarts for r in runs):  # a run resumes: it cannot go back
+                solver = fresh()
+            runs[restarts] = (list(solver.run(restarts)), solver.best_err)
         q = prev[None].copy()
-        q[0, act] = solver.run(restarts)
-        return q
+        q[0, act] = runs[restarts][0]
+        return q, runs[restarts][1]
 
     return solve
 
@@ -542,6 +708,7 @@ def _even_out(
     root: tuple[FloatArray, FloatArray],
     reach: str,
     clock: FloatArray,
+    solves: Solves | None = None,
 ) -> FloatArray:
     """The chained keys with their joint path evened out in time: each round moves every
     inner key halfway to where its neighbours would put it at its time (``clock``: moving at
@@ -562,7 +729,6 @@ def _even_out(
     model = prepare(skel, sites, q[inner], reach=reach, root_position=rp, root_rotation=rr)
     rows = _row_chain(skel, model, root)
     targets = np.concatenate([hands[inner], tips[inner]], axis=1)
-    act = model.active
     err = _errors(state, q[inner], root, sites, [hands[inner], tips[inner]])
     q = q.copy()
     gap = np.maximum(np.diff(clock), 1e-9)
@@ -583,9 +749,8 @@ def _even_out(
             moved = np.empty_like(guess) if last is None else last[1].copy()
             new_err = np.empty(k - 2) if last is None else last[2].copy()
             if ask.size:
-                moved[ask] = solve_rows(rows, targets[ask], guess[ask], model.lower,
-                                        model.upper, skel.q_comfort[act], tol=2e-4,
-                                        null_gain=0.0)  # fmt: skip
+                moved[ask] = _rows_solved(solves, rows, targets[ask], guess[ask], model,
+                                          (reach, sites, root))  # fmt: skip
                 new_err[ask] = _errors(state, moved[ask], root, sites,
                                        [hands[inner][ask], tips[inner][ask]])  # fmt: skip
             last = (guess, moved.copy(), new_err.copy())
@@ -596,6 +761,37 @@ def _even_out(
         if _unmoved(was_q, q[inner], was_err, err):
             break  # a fixed point: every round left would start from this one's poses again
     return q
+
+
+def _rows_solved(
+    solves: Solves | None, chain: RowChain, targets: FloatArray, guess: FloatArray,
+    model: ChainModel, problem: tuple[str, list[str], tuple[FloatArray, FloatArray]],
+) -> FloatArray:  # fmt: skip
+    """``solve_rows`` of ``_even_out``'s rows, each row asked once per compile (``Solves``):
+    the rows solved before are looked up, the others solved together."""
+    comfort = model.skel.q_comfort[model.active]
+
+    def solve(idx: Any) -> FloatArray:
+        return solve_rows(chain, targets[idx], guess[idx], model.lower, model.upper, comfort,
+                          tol=2e-4, null_gain=0.0)  # fmt: skip
+
+    if solves is None:
+        return solve(slice(None))
+    reach, sites, root = problem
+    act, path = model.active, solves.path_dofs(sites)
+    base = _problem_key(reach, sites, root, model, None, model.lower, model.upper, comfort)
+    keys = [(base, array_key(t), array_key(g[path])) for t, g in zip(targets, guess, strict=True)]
+    out = guess.copy()
+    miss = [i for i, k in enumerate(keys) if k not in solves.rows]
+    hit = [i for i, k in enumerate(keys) if k in solves.rows]
+    for i in hit:
+        out[i, act] = solves.rows[keys[i]]
+    if miss:
+        out[miss] = solve(miss)
+        store = solves.keep(solves.rows)
+        for i in miss:
+            store[keys[i]] = out[i, act].copy()
+    return out
 
 
 def _unmoved(q0: FloatArray, q1: FloatArray, err0: FloatArray, err1: FloatArray) -> bool:
@@ -725,7 +921,9 @@ def _keys_solved(
     )  # fmt: skip
     return remembered(  # type: ignore[no-any-return]
         cache, "passes.tool.keys", key,
-        lambda: _solve_keys(state, seg, hands, tips, q0, root, clock, first, trunk), state.skel,
+        lambda: _solve_keys(state, seg, hands, tips, q0, root, clock, first, trunk,
+                            _solves(cache, state.skel) if REMEMBER_SOLVES else None),
+        state.skel,
     )  # fmt: skip
 
 
@@ -806,8 +1004,9 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     lifted = bool(sol.lift.max() > 0)
     speed = np.array([STROKE_TURN_SPEED if any(d in nm for d in TURNING_DOFS)
                       else STROKE_JOINT_SPEED for nm in names]) * (seg.end - seg.start)  # fmt: skip
-    windows = phase_shares(sol.frac, q[:, idx], lifted, speed)
-    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, lifted, windows)
+    windows = _stroke_shares(ctx.cache, sol.frac, q[:, idx], lifted, speed)
+    curves = ctx.cache.setdefault("passes.tool.curves", {})
+    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, lifted, windows, curves)
     # a dof at its stop stays there (the last stroke's blend to the reach pose pushed one past)
     poses = np.clip(poses, state.skel.lower[idx], state.skel.upper[idx])
     seg.keyframes = Keyframes(time=times, dofs=names, q=poses)

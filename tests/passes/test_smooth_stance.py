@@ -11,6 +11,7 @@ import pytest
 from conftest import compile_on
 
 from mtlc.body import forward
+from mtlc.body.kinematics import forward_rows_changed
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.metrics import contact_mask, foot_points, foot_stance
 from mtlc.passes import smooth
@@ -59,7 +60,7 @@ def test_standing_legs_keep_their_angles_through_the_blend(
 
 
 def test_frames_after_the_blend_posed_from_before_as_forward(tmp_path: Path) -> None:
-    """``smooth._posed_after`` gives ``forward``'s numbers, bit for bit, on frames the blend
+    """``forward_rows_changed`` (smooth's pose after the blend) gives ``forward``'s numbers, bit for bit, on frames the blend
     left alone, frames it changed below a joint with the root put, and frames it moved whole."""
     path = tmp_path / "walk.mtask"
     path.write_text(WALK.format(x=350, z=420), encoding="utf-8")
@@ -75,7 +76,7 @@ def test_frames_after_the_blend_posed_from_before_as_forward(tmp_path: Path) -> 
     root[rows[1::3]] = root0[rows[1::3]]  # the root put: a leg, the trunk... posed again
     root[rows[2::3], 1] += 1e-3  # the root moved: posed whole
     before = forward(skel, q0, root0, rot, with_axes=False)
-    got = smooth._posed_after(skel, before, q0, root0, q, root, rot)
+    got = forward_rows_changed(skel, before, q0, root0, q, root, rot)
     want = forward(skel, q, root, rot, with_axes=False)
     assert np.array_equal(got.R.view(np.int64), want.R.view(np.int64))
     assert np.array_equal(got.p.view(np.int64), want.p.view(np.int64))

@@ -573,6 +573,52 @@ def forward_changed(
     return pose
 
 
+def forward_rows_changed(
+    skel: Skeleton,
+    before: Pose,
+    q0: FloatArray,
+    root0: FloatArray,
+    q: FloatArray,
+    root: FloatArray,
+    rot: FloatArray,
+    rot0: FloatArray | None = None,
+) -> Pose:
+    """``forward(skel, q, root, rot, with_axes=False)`` given ``before``, that call's pose of
+    ``q0`` and ``root0`` (and ``rot0``, if not ``rot``), row by row: a row that did not change
+    is ``before``'s; a row whose root stayed has only the branches below its topmost changed
+    joints placed again (``forward_below``: the same numbers), rows grouped by those joints;
+    the others are posed whole. ``forward_changed`` is the same for rows that all keep their
+    root and change the same joints. A long walk's blend changes one swinging leg of most
+    frames (4 joints of 21) and nothing of a fifth of them, and a pass after it changes few."""
+    n = len(q)
+    R, p = before.R.copy(), before.p.copy()
+    moved = bits_differ(root, root0).any(axis=1)
+    if rot0 is not None:
+        moved |= bits_differ(rot, rot0).reshape(n, -1).any(axis=1)
+    changed = np.zeros((n, skel.n_joints), dtype=bool)  # (row, joint) a dof of it changed
+    for d in np.flatnonzero(bits_differ(q, q0).any(axis=0)):
+        changed[:, skel.dof_joint[d]] |= bits_differ(q[:, d], q0[:, d])
+    # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
+    tops = changed & (changed.astype(np.int64) @ skel.ancestor.T.astype(np.int64) == 1)
+    whole = moved | tops[:, skel.parent < 0].any(axis=1)
+    tops[whole] = False
+    code = tops @ (1 << np.arange(skel.n_joints, dtype=np.int64))  # the set of tops, a number
+    order = np.argsort(code, kind="stable")
+    edges = np.flatnonzero(np.diff(code[order])) + 1
+    for rows in np.split(order, edges):
+        if rows.size == 0 or code[rows[0]] == 0:  # nothing changed, or posed whole below
+            continue
+        part = Pose(R=R[rows], p=p[rows], axes=before.axes[rows], root=before.root[rows])
+        for top in np.flatnonzero(tops[rows[0]]):
+            part = forward_below(skel, q[rows], part, int(top))
+        R[rows], p[rows] = part.R, part.p
+    rows = np.flatnonzero(whole)
+    if rows.size:
+        part = forward(skel, q[rows], root[rows], rot[rows], with_axes=False)
+        R[rows], p[rows] = part.R, part.p
+    return Pose(R=R, p=p, axes=before.axes, root=np.array(root, dtype=float))
+
+
 def dof_world_axes(skel: Skeleton, pose: Pose, q: ArrayLike, dofs: Sequence[int]) -> FloatArray:
     """World axes (n, len(dofs), 3) of ``dofs`` at configurations ``q`` (n, D) posed as
     ``pose`` (which may lack ``axes``: ``forward_below``'s): a dof's axis turned by its joint's

@@ -77,7 +77,7 @@ from mtlc.metrics import (
     walk_spans,
     walking,
 )
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import FramesPosed, PassContext
 from mtlc.passes.hold import REPORT_TOL, closed_at, closed_during, last_opening, on_site
 from mtlc.passes.joint_speed import speed_limited
 from mtlc.passes.profile import minimum_jerk
@@ -907,7 +907,11 @@ def solve_grid(rows: np.ndarray, t: FloatArray, stride: int) -> SolveGrid:
 
 
 def balance_frames(
-    ir: MotionIR, frames: Frames, only: np.ndarray | None = None, segs: Segments | None = None
+    ir: MotionIR,
+    frames: Frames,
+    only: np.ndarray | None = None,
+    segs: Segments | None = None,
+    measured_poses: list[Pose] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask).
 
@@ -916,6 +920,8 @@ def balance_frames(
     blended over neighbouring frames, and two frames far apart in time are no neighbours (the
     smoothing pass's frames 1.17 s and 1.87 s of the fuel filter were, and a walking frame took
     a kneeling frame's pelvis shift). ``segs``: ``read_segments(ir)``, if the caller has it.
+    ``measured_poses`` (all frames only): gets the pose of every frame as measured, before
+    the corrections, chunk by chunk (``forward`` without axes).
     """
     skel = ir.skeleton
     if segs is None:
@@ -951,6 +957,8 @@ def balance_frames(
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
         pose, com, all_pts, all_ok = _support_state(ir, frames, c, stance, segs, measured)
+        if measured_poses is not None:
+            measured_poses.append(pose)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
         kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
@@ -1775,7 +1783,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if frames is None or ir.skeleton is None or len(frames.time) == 0:
         return ir
     lift_fingertips(ir, frames)  # what stays under the floor is verify's MT0512
-    _, after, failed = balance_frames(ir, frames)
+    measured = FramesPosed(frames.q.copy(), frames.root_position.copy(),
+                           frames.root_rotation.copy(), [])  # fmt: skip
+    _, after, failed = balance_frames(ir, frames, measured_poses=measured.poses)
+    ctx.cache[FramesPosed.KEY] = measured
     t = frames.time
     reported: set[int] = set()
     for first, last in failure_runs(failed):

@@ -42,7 +42,7 @@ from mtlc.body.ik.clearance import (
 from mtlc.body.kinematics import bits_differ, forward, site_positions, site_rotation
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR, runs_of
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import FramesPosed, PassContext
 from mtlc.passes.hold import carried_postures
 from mtlc.passes.joint_speed import speed_limited, worse_runs_undone
 
@@ -175,7 +175,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # how deep each arm starts inside, both from one whole-body pose of every frame; after
     # that only the frames a correction changed are posed again
     sides = ("r", "l")
-    inside = penetrations(skel, frames.q, root, sides)
+    handed = FramesPosed.take(ctx.cache, frames)  # smooth's pose, brought up to date
+    posed = None if handed is None else handed.now(skel, frames, np.arange(len(frames.time)))
+    inside = penetrations(skel, frames.q, root, sides, posed)
+    del posed, handed
     for k, side in enumerate(sides):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q

@@ -6,8 +6,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from mtlc.body import Pose
+from mtlc.body.kinematics import forward_rows_changed
 from mtlc.diagnostics import DiagnosticSink, Span
-from mtlc.ir.model import SourceRef
+from mtlc.ir.model import FloatArray, Frames, SourceRef
 
 DEFAULT_FPS = 30.0
 # Claims a pass makes about the output frames that the verify pass confirms with a measurement
@@ -51,3 +55,69 @@ class PassContext:
         for code, message, ref, kw in self.claims:
             self.emit(code, message, ref, **kw)
         self.claims.clear()
+
+
+@dataclass
+class FramesPosed:
+    """The dense frames as one pass last posed them (``forward`` without axes, in consecutive
+    chunks), handed to a later pass in ``PassContext.cache`` under ``KEY``: balance poses
+    every frame, then smoothing and clearance pose the same frames again, and each changes
+    few of them (a long walk's 25,000 frames were posed three times). The taker brings the
+    pose up to date with ``forward_rows_changed``: the same numbers as posing anew."""
+
+    KEY = "frames_posed"
+    q: FloatArray
+    root_position: FloatArray
+    root_rotation: FloatArray
+    poses: list[Pose]
+
+    @staticmethod
+    def of(frames: Frames, poses: list[Pose]) -> FramesPosed:
+        """``frames`` as they are now (copied), posed by ``poses`` (filled by the caller)."""
+        return FramesPosed(
+            frames.q.copy(), frames.root_position.copy(), frames.root_rotation.copy(), poses
+        )
+
+    @staticmethod
+    def take(cache: dict[str, Any], frames: Frames) -> FramesPosed | None:
+        """The handed pose, if it poses as many frames as ``frames`` has; taken once."""
+        handed = cache.pop(FramesPosed.KEY, None)
+        if handed is None or handed.q.shape != frames.q.shape:
+            return None
+        return handed  # type: ignore[no-any-return]
+
+    def _chunks(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        starts = np.cumsum([0] + [len(p.R) for p in self.poses])
+        return starts, np.searchsorted(starts, rows, side="right") - 1
+
+    def rows(self, rows: np.ndarray) -> Pose:
+        """The pose of the frames ``rows`` (ascending), as posed."""
+        starts, at = self._chunks(rows)
+        parts = []
+        for k in np.unique(at):
+            p, r = self.poses[k], rows[at == k] - starts[k]
+            parts.append(Pose(R=p.R[r], p=p.p[r], axes=p.axes[r], root=p.root[r]))
+        if len(parts) == 1:
+            return parts[0]
+        return Pose(*(np.concatenate(x) for x in zip(*((p.R, p.p, p.axes, p.root)
+                                                        for p in parts), strict=True)))  # fmt: skip
+
+    def now(self, skel: Any, frames: Frames, rows: np.ndarray) -> Pose:
+        """The pose of ``frames``' rows ``rows`` as they are now: what changed since it was
+        posed is posed again (``forward_rows_changed``)."""
+        return forward_rows_changed(
+            skel, self.rows(rows), self.q[rows], self.root_position[rows], frames.q[rows],
+            frames.root_position[rows], frames.root_rotation[rows], self.root_rotation[rows],
+        )  # fmt: skip
+
+    def update(self, rows: np.ndarray, pose: Pose, frames: Frames) -> None:
+        """Record ``pose`` as the pose of ``frames``' rows ``rows`` (ascending) now."""
+        starts, at = self._chunks(rows)
+        for k in np.unique(at):
+            sel = at == k
+            r = rows[sel] - starts[k]
+            self.poses[k].R[r], self.poses[k].p[r] = pose.R[sel], pose.p[sel]
+            self.poses[k].root[r] = pose.root[sel]
+        self.q[rows] = frames.q[rows]
+        self.root_position[rows] = frames.root_position[rows]
+        self.root_rotation[rows] = frames.root_rotation[rows]

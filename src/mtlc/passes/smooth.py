@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtlc.body import Pose, forward, part_site_positions, site_positions, site_rotation
-from mtlc.body.kinematics import bits_differ, forward_below
+from mtlc.body.kinematics import forward_rows_changed
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
@@ -52,7 +52,7 @@ from mtlc.passes.balance import (
     pin_windows,
     restore_contacts,
 )
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import FramesPosed, PassContext
 from mtlc.passes.joint_speed import worse_runs_undone
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
@@ -159,9 +159,12 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         return ir
     t = frames.time
     q0, root0 = frames.q.copy(), frames.root_position.copy()
+    handed = FramesPosed.take(ctx.cache, frames)  # the balance pass's pose of these frames
     changed = smooth_frames(frames, boundaries(ir), skel.lower, skel.upper)
     rows = np.flatnonzero(changed)
     if rows.size == 0:
+        if handed is not None:
+            ctx.cache[FramesPosed.KEY] = handed
         return ir
     stance_all, pins = foot_stance(ir, t), hand_pins(ir, t, pin_windows(ir, reached_only=True))
     # contacts before and after, on the changed frames only (forward kinematics is the cost),
@@ -175,11 +178,19 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
         rot = frames.root_rotation[r]
-        pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
+        if handed is None:
+            pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
+        else:  # where balance changed them, posed again
+            pose = forward_rows_changed(skel, handed.rows(r), handed.q[r], handed.root_position[r],
+                                        q0[r], root0[r], rot, handed.root_rotation[r])  # fmt: skip
         soles_before = foot_points(skel, pose)
         contact = contact_mask(soles_before, stance_all[r], ir.ground)
         _stance_legs_kept(frames, q0, root0, r, contact, legs)
-        after = _posed_after(skel, pose, q0[r], root0[r], frames.q[r], frames.root_position[r], rot)
+        after = forward_rows_changed(
+            skel, pose, q0[r], root0[r], frames.q[r], frames.root_position[r], rot
+        )
+        if handed is not None:
+            handed.update(r, after, frames)
         # re-pin only the frames where a touching foot or a pinned hand actually moved
         soles = np.linalg.norm(foot_points(skel, after) - soles_before, axis=-1)
         m = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
@@ -216,49 +227,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         kept = worse_runs_undone(q1, q1, frames.q, t, CORRECTED_JOINT_SPEED)
         back = np.flatnonzero((kept != frames.q).any(axis=1))
         frames.q[back], frames.root_position[back] = q1[back], root1[back]
+    if handed is not None:  # for clearance: what changed since is posed again there
+        ctx.cache[FramesPosed.KEY] = handed
     return ir
-
-
-def _posed_after(
-    skel: Skeleton,
-    before: Pose,
-    q0: np.ndarray,
-    root0: np.ndarray,
-    q: np.ndarray,
-    root: np.ndarray,
-    rot: np.ndarray,
-) -> Pose:
-    """``forward(skel, q, root, rot, with_axes=False)`` given ``before``, that call's pose of
-    ``q0`` and ``root0``: a frame the blend left alone is ``before``'s, a frame whose root
-    stayed has only the branches below its topmost changed joints placed again
-    (``forward_below``: the same numbers), frames grouped by those joints; the others posed
-    whole. A long walk's blend changes one swinging leg of most frames (4 joints of 21) and
-    nothing of a fifth of them: posing every frame after the blend was half the pass."""
-    n = len(q)
-    R, p = before.R.copy(), before.p.copy()
-    moved = bits_differ(root, root0).any(axis=1)
-    changed = np.zeros((n, skel.n_joints), dtype=bool)  # (row, joint) a dof of it changed
-    for d in np.flatnonzero(bits_differ(q, q0).any(axis=0)):
-        changed[:, skel.dof_joint[d]] |= bits_differ(q[:, d], q0[:, d])
-    # a changed joint with no changed joint above it (ancestor[j, k]: k is j or above it)
-    tops = changed & (changed.astype(np.int64) @ skel.ancestor.T.astype(np.int64) == 1)
-    whole = moved | tops[:, skel.parent < 0].any(axis=1)
-    tops[whole] = False
-    code = tops @ (1 << np.arange(skel.n_joints, dtype=np.int64))  # the set of tops, a number
-    order = np.argsort(code, kind="stable")
-    edges = np.flatnonzero(np.diff(code[order])) + 1
-    for rows in np.split(order, edges):
-        if rows.size == 0 or code[rows[0]] == 0:  # nothing changed, or posed whole below
-            continue
-        part = Pose(R=R[rows], p=p[rows], axes=before.axes[rows], root=before.root[rows])
-        for top in np.flatnonzero(tops[rows[0]]):
-            part = forward_below(skel, q[rows], part, int(top))
-        R[rows], p[rows] = part.R, part.p
-    rows = np.flatnonzero(whole)
-    if rows.size:
-        part = forward(skel, q[rows], root[rows], rot[rows], with_axes=False)
-        R[rows], p[rows] = part.R, part.p
-    return Pose(R=R, p=p, axes=before.axes, root=np.array(root, dtype=float))
 
 
 def _stance_legs_kept(

@@ -138,17 +138,25 @@ def penetration(
 
 
 def penetrations(
-    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    sides: tuple[str, ...],
+    pose: Pose | None = None,
 ) -> dict[str, FloatArray]:
-    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q``; a run
-    of identical frames (a hold) is measured once (``repeated_rows``)."""
+    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q`` (or
+    ``pose``, ``q``'s if the caller has it: the same numbers); a run of identical frames (a
+    hold) is measured once (``repeated_rows``)."""
     runs = repeated_rows(q, root[0], root[1])
     if runs is not None:
         heads, at = runs
-        once = penetrations(skel, q[heads], (root[0][heads], root[1][heads]), sides)
+        one = None if pose is None else Pose(R=pose.R[heads], p=pose.p[heads],
+                                             axes=pose.axes[heads], root=pose.root[heads])  # fmt: skip
+        once = penetrations(skel, q[heads], (root[0][heads], root[1][heads]), sides, one)
         return {side: depth[at] for side, depth in once.items()}
     limbs = tuple(limb for side in sides for limb in side_limbs(side))
-    pose = forward_part(skel, q, root[0], root[1], measured_points(skel, limbs))
+    if pose is None:
+        pose = forward_part(skel, q, root[0], root[1], measured_points(skel, limbs))
     return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
 
 

@@ -11,10 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mtlc.body import forward
+from mtlc.body.kinematics import output_pose
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import MOTION_PASSES, MotionOptions, PassContext, lower, smooth
+from mtlc.passes import MOTION_PASSES, MotionOptions, PassContext, lower, run_motion, smooth
 from mtlc.passes.context import FramesPosed
 from mtlc.semantics.timeline import ManikinSpec
 
@@ -52,7 +54,7 @@ def test_smooth_gives_the_same_frames_from_the_balance_pose(
     for name, motion_pass in MOTION_PASSES:
         if name in ("carry", "clearance"):
             ir, alone = motion_pass(ir, ctx), motion_pass(alone, fresh)
-    assert FramesPosed.KEY not in ctx.cache  # taken once
+    assert ctx.cache[FramesPosed.KEY] is not handed  # taken, and clearance's own handed on
     same(ir, alone)
 
 
@@ -60,3 +62,18 @@ def same(a: MotionIR, b: MotionIR) -> None:
     for field in ("q", "root_position", "root_rotation"):
         x, y = getattr(a.frames, field), getattr(b.frames, field)
         assert np.array_equal(x.view(np.int64), y.view(np.int64)), field
+
+
+@pytest.mark.parametrize(("sex", "pct"), [("female", 5), ("male", 95)])
+def test_verify_poses_the_output_frames_as_forward_does(sex: str, pct: int) -> None:
+    """Verify takes clearance's pose of the dense frames (through sample: the output frames
+    are every other dense frame) and poses again what changed: the pose it keeps for lint and
+    the metrics is ``forward``'s, to the bit."""
+    options = FrontendOptions(manikin=ManikinSpec("gb10000_1988", sex, pct))
+    prog = run_frontend([ROOT / "examples" / "replace_fuel_filter.mtask"], options)
+    ir = run_motion(prog.timelines[0], prog.sink)
+    f = ir.frames
+    kept = output_pose(ir.skeleton, f.q, f.root_position, f.root_rotation)
+    want = forward(ir.skeleton, f.q, f.root_position, f.root_rotation, with_axes=False)
+    assert np.array_equal(kept.R.view(np.int64), want.R.view(np.int64))
+    assert np.array_equal(kept.p.view(np.int64), want.p.view(np.int64))

@@ -344,17 +344,24 @@ def output_pose(
     root_rotation: FloatArray,
     *,
     keep: bool = False,
+    posed: Pose | None = None,
 ) -> Pose:
     """``forward(skel, q, root_position, root_rotation, with_axes=False)`` of a motion's output
     frames, handed on: the verify pass poses them (``keep``: remembered, one batch, its inputs
     copied), then lint's rules or the metrics ask for the same frames and take that pose (a
     long walk's 26,000 frames: a quarter of a second each time). Taking it forgets it, so no
-    pose outlives its compile. The pose is shared: read it only."""
+    pose outlives its compile. The pose is shared: read it only. ``posed``: that pose, if the
+    caller has it (the verify pass, from the passes before it)."""
     now = [np.ascontiguousarray(x, dtype=float) for x in (q, root_position, root_rotation)]
     kept = _OUTPUT_POSE[:]
     _OUTPUT_POSE.clear()
     same = [k[-1] for k in kept if k[0] is skel and all(map(_same_bits, k[1:4], now))]
-    pose = same[0] if same else forward(skel, q, root_position, root_rotation, with_axes=False)
+    if same:
+        pose = same[0]
+    elif posed is not None:
+        pose = posed
+    else:
+        pose = forward(skel, q, root_position, root_rotation, with_axes=False)
     if keep:
         _OUTPUT_POSE.append((skel, *(x.copy() for x in now), pose))
     return pose

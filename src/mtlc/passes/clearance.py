@@ -178,7 +178,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     handed = FramesPosed.take(ctx.cache, frames)  # smooth's pose, brought up to date
     posed = None if handed is None else handed.now(skel, frames, np.arange(len(frames.time)))
     inside = penetrations(skel, frames.q, root, sides, posed)
-    del posed, handed
+    if posed is not None:  # handed on as the pose of the frames as they are now
+        handed = FramesPosed.of(frames, [posed])
+    del posed
     for k, side in enumerate(sides):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
@@ -226,6 +228,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         frames.q = result
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)
+    if handed is not None:  # for verify, via sample: what clearance changed is posed again
+        ctx.cache[FramesPosed.KEY] = handed
     return ir
 
 

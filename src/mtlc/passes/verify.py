@@ -43,7 +43,7 @@ from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
 from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, take_pose
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import FramesPosed, PassContext
 from mtlc.passes.hold import carried_postures
 from mtlc.passes.tool import is_stroke
 
@@ -110,7 +110,12 @@ class _Verifier:
         f = ir.frames
         self.t: FloatArray = np.asarray(f.time, dtype=float)
         # no Jacobian is taken here: the dof axes (a third of the pose's memory) are left out
-        self.pose: Pose = output_pose(self.skel, f.q, f.root_position, f.root_rotation, keep=True)
+        # the passes' pose of these frames, brought up to date (clearance's, via sample)
+        handed = FramesPosed.take(ctx.cache, f)
+        posed = None if handed is None else handed.now(self.skel, f, np.arange(len(f.time)))
+        self.pose: Pose = output_pose(
+            self.skel, f.q, f.root_position, f.root_rotation, keep=True, posed=posed
+        )
         self.v = Verification()
         self.reported: set[tuple[Any, ...]] = set()
         self.claims = [c for c in ctx.claims]

@@ -1783,10 +1783,13 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if frames is None or ir.skeleton is None or len(frames.time) == 0:
         return ir
     lift_fingertips(ir, frames)  # what stays under the floor is verify's MT0512
-    measured = FramesPosed(frames.q.copy(), frames.root_position.copy(),
-                           frames.root_rotation.copy(), [])  # fmt: skip
-    _, after, failed = balance_frames(ir, frames, measured_poses=measured.poses)
-    ctx.cache[FramesPosed.KEY] = measured
+    # the pose of every frame, handed on to smoothing, clearance and verify (up to
+    # ``FramesPosed.MAX_FRAMES``: 1.8 KB a frame, 100 MB at the default motion budget)
+    measured = FramesPosed.of(frames, []) if len(frames.time) <= FramesPosed.MAX_FRAMES else None
+    poses = None if measured is None else measured.poses
+    _, after, failed = balance_frames(ir, frames, measured_poses=poses)
+    if measured is not None:
+        ctx.cache[FramesPosed.KEY] = measured
     t = frames.time
     reported: set[int] = set()
     for first, last in failure_runs(failed):

@@ -66,6 +66,10 @@ class FramesPosed:
     pose up to date with ``forward_rows_changed``: the same numbers as posing anew."""
 
     KEY = "frames_posed"
+    # frames up to which a pass keeps the pose of every frame to hand on: the default motion
+    # budget's 15 minutes at 60 frames a second (a longer motion is posed by each pass again,
+    # a chunk at a time: memory stays linear and small, docs/passes.md "Memory")
+    MAX_FRAMES = 54_000
     q: FloatArray
     root_position: FloatArray
     root_rotation: FloatArray

@@ -1,4 +1,5 @@
-"""The dense-frame passes keep a few hundred bytes a frame, not a pose a frame (issue 17).
+"""The dense-frame passes keep a few hundred bytes a frame, not a pose a frame (issue 17),
+but for the one pose balance hands on to the passes after it (``FramesPosed``).
 
 Two lengths of the same standing task; the growth of the tracemalloc peak per added frame is
 what the pass keeps for each frame. Before chunking: interpolate 3.2 KB, balance 9.0 KB a frame
@@ -19,7 +20,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
 from mtlc.passes import balance, interpolate, run_motion
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import FramesPosed, PassContext
 
 
 def _peaks(tmp_path: Path, seconds: int) -> tuple[int, list[int]]:
@@ -51,11 +52,36 @@ def test_interpolate_and_balance_memory_per_frame(
 ) -> None:
     monkeypatch.setattr(balance, "CHUNK_FRAMES", 512)
     monkeypatch.setattr(interpolate, "CHUNK_FRAMES", 512)
+    # the pose balance hands on (``FramesPosed``) is measured below, by itself
+    monkeypatch.setattr(FramesPosed, "MAX_FRAMES", 0)
     n1, small = _peaks(tmp_path, 60)
     n2, large = _peaks(tmp_path, 240)
     per_frame = [(b - a) / (n2 - n1) for a, b in zip(small, large, strict=True)]
     assert per_frame[0] < 1500, per_frame  # interpolate: the frames themselves and the curves
     assert per_frame[1] < 1000, per_frame  # balance: margins and flags, not poses and hulls
+
+
+def test_the_pose_handed_on_is_one_pose_a_frame(tmp_path: Path) -> None:
+    """Balance keeps one whole-body pose of every frame for smoothing, clearance and verify
+    (``FramesPosed``): the joints' frames without the dof axes and a copy of the frame, about
+    2.4 KB a frame and no more (no hull, no support, no axes), up to ``MAX_FRAMES``."""
+    path = tmp_path / "t.mtask"
+    path.write_text(
+        "use stdlib.actions\nscene s {\n    site g at (0, 150, 60) cm normal (0, 0, -1)\n}\n"
+        "task t {\n    scene s\n    inspect(g, 20 s)\n}\n",
+        encoding="utf-8",
+    )
+    (timeline,) = run_frontend([path]).timelines
+    sink = DiagnosticSink()
+    ctx = PassContext(sink)
+    ir = run_motion(timeline, sink, until="settle")
+    balance.run(ir, ctx)
+    handed = ctx.cache[FramesPosed.KEY]
+    arrays = [handed.q, handed.root_position, handed.root_rotation]
+    arrays += [a for p in handed.poses for a in (p.R, p.p, p.axes, p.root)]
+    per_frame = sum(a.nbytes for a in arrays) / len(ir.frames.time)
+    assert 2000 < per_frame < 2600, per_frame
+    assert FramesPosed.MAX_FRAMES * 2600 <= 150e6  # at the default motion budget
 
 
 def test_chunks_do_not_change_the_frames(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -52,6 +52,19 @@ class Pose:
         """Leading batch dimensions."""
         return self.p.shape[:-2]
 
+    def rows(self, rows: ArrayLike) -> Pose:
+        """The rows of a batched pose (N, ...)."""
+        return Pose(R=self.R[rows], p=self.p[rows], axes=self.axes[rows], root=self.root[rows])
+
+    @staticmethod
+    def joined(parts: Sequence[Pose]) -> Pose:
+        """Batched poses one after the other."""
+        if len(parts) == 1:
+            return parts[0]
+        return Pose(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in ("R", "p", "axes", "root"))
+        )
+
 
 def quat_to_matrix(quat: ArrayLike) -> FloatArray:
     """Rotation matrices from quaternions (..., 4), w first; normalised on the way."""

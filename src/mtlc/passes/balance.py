@@ -704,7 +704,7 @@ def lean_trunk(
 
 def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
     """The rows of a batched pose."""
-    return Pose(R=pose.R[rows], p=pose.p[rows], axes=pose.axes[rows], root=pose.root[rows])
+    return pose.rows(rows)
 
 
 def put_pose(pose: Pose, rows: np.ndarray, part: Pose) -> None:
@@ -870,11 +870,7 @@ def _support_state(
 
 
 def _concatenate_poses(parts: list[Pose]) -> Pose:
-    if len(parts) == 1:
-        return parts[0]
-    return Pose(
-        *(np.concatenate(x) for x in zip(*((p.R, p.p, p.axes, p.root) for p in parts), strict=True))
-    )
+    return Pose.joined(parts)
 
 
 class SolveGrid(NamedTuple):

@@ -97,14 +97,7 @@ class FramesPosed:
     def rows(self, rows: np.ndarray) -> Pose:
         """The pose of the frames ``rows`` (ascending), as posed."""
         starts, at = self._chunks(rows)
-        parts = []
-        for k in np.unique(at):
-            p, r = self.poses[k], rows[at == k] - starts[k]
-            parts.append(Pose(R=p.R[r], p=p.p[r], axes=p.axes[r], root=p.root[r]))
-        if len(parts) == 1:
-            return parts[0]
-        return Pose(*(np.concatenate(x) for x in zip(*((p.R, p.p, p.axes, p.root)
-                                                        for p in parts), strict=True)))  # fmt: skip
+        return Pose.joined([self.poses[k].rows(rows[at == k] - starts[k]) for k in np.unique(at)])
 
     def now(self, skel: Any, frames: Frames, rows: np.ndarray) -> Pose:
         """The pose of ``frames``' rows ``rows`` as they are now: what changed since it was

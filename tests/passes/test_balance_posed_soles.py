@@ -10,7 +10,6 @@ import pytest
 
 from mtlc.body import build_manikin, forward, part_site_positions, site_positions
 from mtlc.metrics import FOOT_POINT_NAMES
-from mtlc.passes.balance import take_pose
 
 SKELS = [build_manikin("gb10000_1988", "female", 5), build_manikin("gb10000_1988", "male", 95)]
 BOTH = [f"{s}_{p}" for s in "rl" for p in FOOT_POINT_NAMES]
@@ -42,6 +41,6 @@ def test_sole_points_of_both_feet_and_of_the_whole_pose_are_each_feet(skel, n) -
                 axis=1,
             )
             both = part_site_positions(skel, q[rows], root[rows], rot[rows], BOTH)
-            posed = site_positions(skel, whole if m == n else take_pose(whole, rows), BOTH)
+            posed = site_positions(skel, whole if m == n else whole.rows(rows), BOTH)
             assert bits(both) == bits(each)
             assert bits(posed) == bits(each)

@@ -593,7 +593,7 @@ def _restore_contacts(
     if out is None:
         now_all = part_site_positions(skel, res.q, rl, rotl, soles)
     else:
-        now_all = site_positions(skel, take_pose(out, legs) if sub else out, soles)
+        now_all = site_positions(skel, out.rows(legs) if sub else out, soles)
     for k, (pos, rot, touch) in enumerate(feet.values()):  # every sole point of a touching foot
         rel = soles_in_foot[list(feet)[k]]
         if sub:
@@ -674,7 +674,7 @@ def lean_trunk(
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         if not moving.all():
             active, push = active[moving], push[moving]
-            p = take_pose(p, np.flatnonzero(moving))
+            p = p.rows(np.flatnonzero(moving))
         if active.size == 0:
             break
         # (B, 2, S), laid out as the whole Jacobian's columns were taken (batch-major last):
@@ -697,14 +697,9 @@ def lean_trunk(
         # none did (0 of 5,908 rows on fuzz cases #606, #4034 and the examples): it stops here
         kept = wa <= POSITION_TOL
         if not kept.all():
-            active, p = active[kept], take_pose(p, np.flatnonzero(kept))
+            active, p = active[kept], p.rows(np.flatnonzero(kept))
     margin = support_margin(pts, ok, carried_com(ir, pose, time, holding)[:, [0, 2]], hulls)
     return q, root, worst, margin, pose
-
-
-def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
-    """The rows of a batched pose."""
-    return pose.rows(rows)
 
 
 def put_pose(pose: Pose, rows: np.ndarray, part: Pose) -> None:
@@ -855,7 +850,7 @@ def _support_state(
     one, one_stance, one_rest = pose, stance[idx], rest
     if runs is not None:
         heads, at = runs
-        one, one_stance, one_rest = take_pose(pose, heads), one_stance[heads], rest[heads]
+        one, one_stance, one_rest = pose.rows(heads), one_stance[heads], rest[heads]
     into.contact[idx] = contact_mask(foot_points(skel, one), one_stance, ir.ground)[at]
     pts, ok = support(skel, one, one_stance, ir.ground, one_rest)
     pts, ok = pts[at], ok[at]
@@ -867,10 +862,6 @@ def _support_state(
         into.hands[idx, k] = site_positions(skel, one, name)[at]
     into.lowest[idx] = lowest_point(skel, one)[at]
     return pose, carried_com(ir, pose, t, segs.holding), pts, ok
-
-
-def _concatenate_poses(parts: list[Pose]) -> Pose:
-    return Pose.joined(parts)
 
 
 class SolveGrid(NamedTuple):
@@ -963,7 +954,7 @@ def balance_frames(
         centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
         hopeless[c] = ~(hull_margin(all_hull, centroid) > 0.0) | (before[c] < -MAX_SHIFT)
         low = ~np.isnan(before[c]) & (before[c] < MARGIN)
-        poses.append(take_pose(pose, np.flatnonzero(low & static[c] & ~hopeless[c])))
+        poses.append(pose.rows(np.flatnonzero(low & static[c] & ~hopeless[c])))
         del pose, all_pts, all_ok, com, all_hull, centroid
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
@@ -976,7 +967,7 @@ def balance_frames(
     if rows.size == 0:
         return before, after, failed
     # the frames to correct, as measured (the support stays where it was)
-    pose_r, m_r = _concatenate_poses(poses), measured.take(rows)
+    pose_r, m_r = Pose.joined(poses), measured.take(rows)
     del poses
     pts, ok = m_r.pts, m_r.ok
     hulls = grouped_hull(pts, ok)
@@ -1012,7 +1003,7 @@ def balance_frames(
         active = sel[~kneeling[rows[sel]]]
         schedule = StepSchedule(rows.size)
         for _ in range(ROUNDS):
-            c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
+            c = carried_com(ir, p_rows.rows(active), t[rows][active], segs.holding)
             c = c[:, [0, 2]]
             push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
             moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
@@ -1047,7 +1038,7 @@ def balance_frames(
                 put_pose(p_rows, ok_rows, moved)
             retrying = schedule.update(trying, lost, far, worst_a)
             active = np.sort(np.concatenate([active[~awake], retrying]))
-        p = take_pose(p_rows, sel)
+        p = p_rows.rows(sel)
         margin[sel] = hull_margin(
             hulls.take(sel), carried_com(ir, p, t[rows][sel], segs.holding)[:, [0, 2]]
         )
@@ -1098,7 +1089,7 @@ def balance_frames(
         took = tried[fine]
         q[took], root[took], worst[took], margin[took] = qi[fine], ri[fine], wi[fine], mi[fine]
         good[took] = True
-        put_pose(p_rows, took, take_pose(pi, np.flatnonzero(fine)))
+        put_pose(p_rows, took, pi.rows(np.flatnonzero(fine)))
         between = np.setdiff1d(between, took)
     if between.size:
         correct(between)

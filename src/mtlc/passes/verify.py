@@ -42,7 +42,7 @@ from mtlc.geometry.held import HeldPart, held_parts
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
-from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, take_pose
+from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs
 from mtlc.passes.context import FramesPosed, PassContext
 from mtlc.passes.hold import carried_postures
 from mtlc.passes.tool import is_stroke
@@ -629,7 +629,7 @@ class _Verifier:
         # the points that touch, whatever the steps' records say (``touching_support``)
         for a in range(0, len(t), CHUNK_FRAMES):
             c = slice(a, a + CHUNK_FRAMES)
-            margin[c] = balance_margin(ir, take_pose(self.pose, c), t[c])
+            margin[c] = balance_margin(ir, self.pose.rows(c), t[c])
         static = ~walking(ir, t)
         self.v.support_margin, self.v.static = margin, static
         sel = np.flatnonzero(static & ~np.isnan(margin))
@@ -669,7 +669,7 @@ class _Verifier:
             depth, pairs = self_intersection(self.skel, self.pose)
         else:  # a run of identical frames (a hold) is as deep as its first (the same numbers)
             heads, at = runs
-            depth, pairs = self_intersection(self.skel, take_pose(self.pose, heads))
+            depth, pairs = self_intersection(self.skel, self.pose.rows(heads))
             depth = depth[at]
         per_frame = depth.max(axis=1)
         self.v.intersection_frames = per_frame
@@ -767,7 +767,7 @@ class _Verifier:
         by_column = {part.column: part for part in held}
         for (_, part, model, _site), (d, i, seg, goal, column) in worst.items():
             j = fc.capsules.index(part)
-            a, b, radius = capsule_segments(self.skel, take_pose(self.pose, slice(i, i + 1)),
+            a, b, radius = capsule_segments(self.skel, self.pose.rows(slice(i, i + 1)),
                                             (caps[j],))  # fmt: skip
             node = None
             if column in by_column:  # a held part: the query in its own frame, its node named

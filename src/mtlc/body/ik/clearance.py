@@ -150,8 +150,7 @@ def penetrations(
     runs = repeated_rows(q, root[0], root[1])
     if runs is not None:
         heads, at = runs
-        one = None if pose is None else Pose(R=pose.R[heads], p=pose.p[heads],
-                                             axes=pose.axes[heads], root=pose.root[heads])  # fmt: skip
+        one = None if pose is None else pose.rows(heads)
         once = penetrations(skel, q[heads], (root[0][heads], root[1][heads]), sides, one)
         return {side: depth[at] for side, depth in once.items()}
     limbs = tuple(limb for side in sides for limb in side_limbs(side))
@@ -191,12 +190,8 @@ class _Problem:
         return _Problem(
             (self.root[0][idx], self.root[1][idx]), self.kept[idx], self.keep[idx],
             self.rest[idx], None if self.elbow is None else self.elbow[idx], self.clear_weight,
-            None if self.base is None else _take_pose(self.base, idx),
+            None if self.base is None else self.base.rows(idx),
         )  # fmt: skip
-
-
-def _take_pose(pose: Pose, idx: np.ndarray) -> Pose:
-    return Pose(R=pose.R[idx], p=pose.p[idx], axes=pose.axes[idx], root=pose.root[idx])
 
 
 def _pose(skel: Skeleton, q: FloatArray, side: str, pb: _Problem) -> Pose:

@@ -176,7 +176,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # that only the frames a correction changed are posed again
     sides = ("r", "l")
     handed = FramesPosed.take(ctx.cache, frames)  # smooth's pose, brought up to date
-    posed = None if handed is None else handed.now(skel, frames, np.arange(len(frames.time)))
+    posed = None if handed is None else handed.all_now(skel, frames)
     inside = penetrations(skel, frames.q, root, sides, posed)
     if posed is not None:  # handed on as the pose of the frames as they are now
         handed = FramesPosed.of(frames, [posed])

@@ -99,13 +99,21 @@ class FramesPosed:
         starts, at = self._chunks(rows)
         return Pose.joined([self.poses[k].rows(rows[at == k] - starts[k]) for k in np.unique(at)])
 
-    def now(self, skel: Any, frames: Frames, rows: np.ndarray) -> Pose:
-        """The pose of ``frames``' rows ``rows`` as they are now: what changed since it was
-        posed is posed again (``forward_rows_changed``)."""
+    def now(
+        self, skel: Any, rows: np.ndarray, q: FloatArray, root: FloatArray, rot: FloatArray
+    ) -> Pose:
+        """The pose of the frames ``rows`` whose values are now ``q``, ``root`` and ``rot``
+        (one row each): what changed since they were posed is posed again
+        (``forward_rows_changed``)."""
         return forward_rows_changed(
-            skel, self.rows(rows), self.q[rows], self.root_position[rows], frames.q[rows],
-            frames.root_position[rows], frames.root_rotation[rows], self.root_rotation[rows],
+            skel, self.rows(rows), self.q[rows], self.root_position[rows], q, root, rot,
+            self.root_rotation[rows],
         )  # fmt: skip
+
+    def all_now(self, skel: Any, frames: Frames) -> Pose:
+        """``now`` of every frame of ``frames``."""
+        return self.now(skel, np.arange(len(frames.q)), frames.q, frames.root_position,
+                        frames.root_rotation)  # fmt: skip
 
     def update(self, rows: np.ndarray, pose: Pose, frames: Frames) -> None:
         """Record ``pose`` as the pose of ``frames``' rows ``rows`` (ascending) now."""

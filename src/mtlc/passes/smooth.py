@@ -181,8 +181,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         if handed is None:
             pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
         else:  # where balance changed them, posed again
-            pose = forward_rows_changed(skel, handed.rows(r), handed.q[r], handed.root_position[r],
-                                        q0[r], root0[r], rot, handed.root_rotation[r])  # fmt: skip
+            pose = handed.now(skel, r, q0[r], root0[r], rot)
         soles_before = foot_points(skel, pose)
         contact = contact_mask(soles_before, stance_all[r], ir.ground)
         _stance_legs_kept(frames, q0, root0, r, contact, legs)

@@ -112,7 +112,7 @@ class _Verifier:
         # no Jacobian is taken here: the dof axes (a third of the pose's memory) are left out
         # the passes' pose of these frames, brought up to date (clearance's, via sample)
         handed = FramesPosed.take(ctx.cache, f)
-        posed = None if handed is None else handed.now(self.skel, f, np.arange(len(f.time)))
+        posed = None if handed is None else handed.all_now(self.skel, f)
         self.pose: Pose = output_pose(
             self.skel, f.q, f.root_position, f.root_rotation, keep=True, posed=posed
         )

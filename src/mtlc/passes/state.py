@@ -417,14 +417,20 @@ def start_posture_from(seg: Segment, first: FloatArray, fade: bool = True) -> No
     kf.q[0] = first
 
 
-def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:
-    """Memoise a solver model per compile (ChainModel setup costs more than a small solve)."""
-    store: dict[Any, Any] = ctx_cache.setdefault("passes.state.models", {})
+def memo(store: dict[Any, Any], key: Any, make: Callable[[], Any], limit: int) -> Any:
+    """``make()`` once for an exact ``key`` in ``store``, returned as it is (not copied: for
+    what callers only read); ``store`` is emptied when it holds ``limit`` entries, so a
+    compile's memo stays bounded."""
     if key not in store:
-        if len(store) > 256:
+        if len(store) >= limit:
             store.clear()
         store[key] = make()
     return store[key]
+
+
+def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:
+    """Memoise a solver model per compile (ChainModel setup costs more than a small solve)."""
+    return memo(ctx_cache.setdefault("passes.state.models", {}), key, make, 257)
 
 
 SOLVES_KEPT = 512  # solver results a compile remembers (a TO path is ~100 KB at most)

@@ -41,7 +41,7 @@ from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_shor
 from mtlc.passes.chain_ik import ChainSolve, RowChain, ScalarChain, solve_rows
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.profile import minimum_jerk, placing_clock
-from mtlc.passes.state import PoseState, array_key, reanchor, remembered
+from mtlc.passes.state import PoseState, array_key, memo, reanchor, remembered
 
 LIFT = 0.03  # m the tool is lifted off the fastener to swing back
 SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener before swinging
@@ -253,12 +253,9 @@ def _phase_path(
     if len(keys) > 2:
         if curves is None:
             return pchip(along, q[keys])(u)
-        key = (k, array_key(frac), array_key(q))
-        if key not in curves:
-            if len(curves) >= SHARES_KEPT:
-                curves.clear()
-            curves[key] = pchip(along, q[keys])
-        return curves[key](u)  # type: ignore[no-any-return]
+        curve = memo(curves, (k, array_key(frac), array_key(q)),
+                     lambda: pchip(along, q[keys]), SHARES_KEPT)  # fmt: skip
+        return curve(u)  # type: ignore[no-any-return]
     return q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
 
 
@@ -294,13 +291,11 @@ def _stroke_shares(
 ) -> tuple[tuple[float, float], ...]:
     """``phase_shares``, once per compile for the exact same stroke: the middle strokes of a
     series repeat their keys and time (a 90 rad turn is 86 strokes of one solved stroke)."""
-    found: dict[Any, tuple[tuple[float, float], ...]] = cache.setdefault("passes.tool.shares", {})
-    key = (array_key(frac), array_key(q), lifted, array_key(speed))
-    if key not in found:
-        if len(found) >= SHARES_KEPT:
-            found.clear()
-        found[key] = phase_shares(frac, q, lifted, speed)
-    return found[key]
+    return memo(  # type: ignore[no-any-return]
+        cache.setdefault("passes.tool.shares", {}),
+        (array_key(frac), array_key(q), lifted, array_key(speed)),
+        lambda: phase_shares(frac, q, lifted, speed), SHARES_KEPT,
+    )  # fmt: skip
 
 
 def paced_stroke(
@@ -652,7 +647,7 @@ def _row_chain(
 
 def _key_solver(
     skel: Skeleton, model: ChainModel, scalar: ScalarChain | None, goals: list[Goal],
-    targets: FloatArray, prev: FloatArray, memo: tuple[Solves | None, str, Any] | None = None,
+    targets: FloatArray, prev: FloatArray, asked: tuple[Solves | None, str, Any] | None = None,
     **kw: Any,
 ) -> Callable[[int], tuple[FloatArray, float | None]]:  # fmt: skip
     """A key's solve as a function of its restarts: (1, D) ``solve_ta(skel, goals, prev[None],
@@ -669,7 +664,7 @@ def _key_solver(
         return ChainSolve(scalar, targets.tolist(), prev[act], model.lower, model.upper,
                           skel.q_comfort[act], tol=kw["tol"])  # fmt: skip
 
-    solves, reach, root = memo if memo is not None else (None, "", None)
+    solves, reach, root = asked if asked is not None else (None, "", None)
     if solves is None:
         solver = fresh()
         runs: dict[int, tuple[list[float], float]] = {}
@@ -678,10 +673,7 @@ def _key_solver(
         key = _problem_key(reach, list(model.sites), root, model, model.q_base[0, path],
                            model.lower, model.upper, skel.q_comfort[act], array_key(targets),
                            array_key(prev[act]), kw["tol"])  # fmt: skip
-        found = solves.keys.get(key)
-        if found is None:
-            found = solves.keep(solves.keys)[key] = (fresh(), {})
-        solver, runs = found
+        solver, runs = memo(solves.keys, key, lambda: (fresh(), {}), SOLVES_REMEMBERED)
 
     def solve(restarts: int) -> tuple[FloatArray, float | None]:
         nonlocal solver

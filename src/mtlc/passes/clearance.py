@@ -87,10 +87,11 @@ STRAIGHT_ARM = 0.03  # m: an elbow this close to the shoulder-wrist line is not 
 PLAN_FRAMES = 1800
 SWIVEL_PRICE = 0.003  # m of depth a radian of turn is worth: turned no further than it must
 # a held arm's run of corrected frames is evened out where a step goes this share of
-# ``CORRECTED_JOINT_SPEED`` over it (four times the speed: a flip, not a fast turn)
-GIVE_BACK_SLACK = 3.0
-# ...where the plan turned the elbow, what a step may go over it: issue 19's 360 deg/s
+# ``CORRECTED_JOINT_SPEED`` over it: issue 19's 360 deg/s. (At three times the share, four
+# times the speed, steps of 20 deg in an output frame stood: bench/procedures had 100 of 182
+# outputs over 12 deg, 37 since.)
 PLAN_SLACK = math.radians(360.0) / CORRECTED_JOINT_SPEED - 1.0
+GIVE_BACK_SLACK = PLAN_SLACK
 FLIP_SHARES = (0.75, 0.5, 0.25)  # ...or of its correction, tried before it is given back
 
 
@@ -225,6 +226,11 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             planned = (start != q).any(axis=1)
             result = flips_evened(skel, start, result, root, side, frames.time, planned, PLAN_SLACK)
         result = flips_evened(skel, start, result, root, side, frames.time, held)
+        if start is not q:
+            # measured against the plan, a run given back is the plan's, whose own turn can
+            # step 13 deg in a frame where the motion turns (the aircraft panel's relay, female
+            # P1: 21 deg in an output frame): against the motion as it came, too
+            result = flips_evened(skel, q, result, root, side, frames.time, held)
         frames.q = result
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)

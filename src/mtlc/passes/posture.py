@@ -1004,7 +1004,7 @@ def restate_wide_stand(seg: Segment, state: PoseState) -> None:
     knees again (``arms_between_knees``).
 
     The trunk the reaches left (turned and leaned toward the site) goes to the stand's own over
-    the first ``WIDE_STAND_SETTLE`` of it, as a kneel's spine does (``restate_kneel_on``):
+    the first ``WIDE_STAND_SETTLE`` of it, as a kneel's spine does (``restate_kneel``):
     restated at the first keyframe only, it turned back 12° in the first 29 ms of the stand
     (the drain valve), and smoothing that jump with the hand still pinned swung the arm into
     the rising thigh."""
@@ -1065,12 +1065,15 @@ def _twist_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     mark(ctx.cache, seg, "twist")
 
 
-def restate_kneel_on(seg: Segment, state: PoseState) -> None:
-    """A kneel that goes on from (or back to) another kneel: its arm ramps as any kneel's, and
-    its spine starts where the reaches since that kneel left it and goes to the plan's over the
-    first phase, before a knee moves (within the limits), instead of jumping to where that kneel's plan left it (a
-    trunk leaning to a part on the floor stood up in one frame and tore the held hand off it:
-    1.2 m); the plan's own trunk keeps the swing balanced as it ends."""
+def restate_kneel(seg: Segment, state: PoseState) -> None:
+    """A kneel's arm ramps (``restate_kneel_arms``), and its spine starting where the body
+    really is and going to the plan's over the first phase, before a knee moves (within the
+    limits): the plan starts from the pose the posture pass saw, and the passes after it move
+    the trunk before the kneel. A kneel from another kneel: a trunk leaning to a part on the
+    floor stood up in one frame and tore the held hand off it (1.2 m); a kneel after a walk
+    that carried a picked part with the trunk bent: the lumbar went 14.7 -> 0 deg in one
+    frame (issue 19, the rack module's spare). The plan's own trunk keeps the swing balanced
+    as the phase ends."""
     restate_kneel_arms(seg, state)
     kf = seg.keyframes
     assert kf is not None
@@ -1113,8 +1116,8 @@ def restate_rest(seg: Segment, state: PoseState) -> None:
 RESTATERS = {
     "rest": restate_rest,
     "twist": restate_twist,
-    "kneel_arms": restate_kneel_arms,
-    "kneel_on": restate_kneel_on,
+    "kneel_arms": restate_kneel,
+    "kneel_on": restate_kneel,
     "stand_arms": restate_stand_arms,
     "stand_from_kneel": restate_stand_from_kneel,
     "wide_stand": restate_wide_stand,

@@ -682,15 +682,32 @@ class _Verifier:
             "part": pairs[c][1] if per_frame[k] > 0 else "",
         }
         worst: dict[SourceRef, tuple[float, int, int, Segment]] = {}  # the deepest per line
+
+        def deepest(i: int, c: int, seg: Segment | None) -> None:
+            if seg is None:
+                return
+            ref = seg.provenance.origin
+            if ref not in worst or depth[i, c] > worst[ref][0]:
+                worst[ref] = (float(depth[i, c]), i, c, seg)
+
         for c, (limb, _) in enumerate(pairs):
             for first, last in failure_runs(depth[:, c] > TOLERANCE):
                 i = first + int(np.argmax(depth[first : last + 1, c]))
-                seg = self.active(i, [ARM_TRACK["r" if limb.startswith("right") else "l"]])
-                if seg is None:
-                    continue
-                ref = seg.provenance.origin
-                if ref not in worst or depth[i, c] > worst[ref][0]:
-                    worst[ref] = (float(depth[i, c]), i, c, seg)
+                deepest(i, c, self.active(i, [ARM_TRACK["r" if limb.startswith("right") else "l"]]))
+                # and at every other line live while it is inside: the deepest frame of a
+                # long, even run is a matter of a tenth of a millimetre, and whoever reads
+                # the output finds the finding at the line live at the frame they measured
+                for seg in self.segs:
+                    if seg.end < self.t[first] - EPS or seg.start > self.t[last] + EPS:
+                        continue
+                    a = first + int(np.searchsorted(self.t[first : last + 1], seg.start - EPS))
+                    b = first + int(
+                        np.searchsorted(self.t[first : last + 1], seg.end + EPS, "right")
+                    )
+                    inside = np.flatnonzero(depth[a:b, c] > TOLERANCE)
+                    if inside.size:
+                        k = a + int(inside[np.argmax(depth[a + inside, c])])
+                        deepest(k, c, seg)
         for ref, (d, i, c, seg) in worst.items():
             limb, part = pairs[c]
             self.report(

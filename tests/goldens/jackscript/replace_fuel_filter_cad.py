@@ -584,30 +584,30 @@ def replace_fuel_filter_cad():
         'left_wrist': (-45.584, 14.811),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.066, 15.264, 23.853),
-        'left_elbow': (38.001, 42.703), 'left_wrist': (-51.759, 10.314),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.024, 15.26, 23.942),
+        'left_elbow': (38.16, 45.445), 'left_wrist': (-51.94, 7.567),
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
-        'left_shoulder': (28.784, 24.858, 22.777), 'left_elbow': (65.303, 39.509),
-        'left_wrist': (-61.058, -2.759),
+        'left_shoulder': (27.765, 22.076, 17.275), 'left_elbow': (65.11, 43.618),
+        'left_wrist': (-58.883, -0.765),
     })
     human.KeyJoints(10.8, {
         'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
-        'left_shoulder': (7.897, 28.327, 1.218), 'left_elbow': (86.182, 46.878),
-        'left_wrist': (-63.125, -8.082),
+        'left_shoulder': (8.098, 27.392, 0.234), 'left_elbow': (85.896, 44.56),
+        'left_wrist': (-63.387, -4.668),
     })
     human.KeyJoints(10.9, {
-        'left_shoulder': (-12.81, 31.255, -23.267), 'left_elbow': (96.01, 46.176),
-        'left_wrist': (-65.452, -4.681),
+        'left_shoulder': (-11.708, 29.588, -24.364), 'left_elbow': (96.115, 42.409),
+        'left_wrist': (-64.791, -0.679),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-22.754, 32.153, -49.461), 'left_elbow': (96.983, 35.696),
-        'left_wrist': (-62.721, 10.473),
+        'left_shoulder': (-24.197, 33.267, -48.181), 'left_elbow': (97.268, 36.912),
+        'left_wrist': (-64.605, 5.935),
     })
     human.KeyJoints(11.1, {
-        'left_shoulder': (-29.742, 38.428, -65.147), 'left_elbow': (97.366, 32.816),
-        'left_wrist': (-64.869, 9.883),
+        'left_shoulder': (-30.287, 38.612, -64.948), 'left_elbow': (97.448, 32.954),
+        'left_wrist': (-65.275, 8.946),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(11.2, {

@@ -469,7 +469,22 @@ def hand_restored(
     site = f"{side}_hand"
     at = forward(skel, kept, *root)
     rotation = site_rotation(skel, at, site) if turn else None
-    goal = [Goal(site, position=site_positions(skel, at, site), orientation=rotation)]
+    return hand_put(skel, seed, site_positions(skel, at, site), rotation, root, side)
+
+
+def hand_put(
+    skel: Skeleton,
+    seed: FloatArray,
+    position: FloatArray,
+    rotation: FloatArray | None,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+) -> tuple[FloatArray, np.ndarray]:
+    """The poses ``seed`` (N, D) with the ``side`` hand at ``position`` (N, 3) and, given,
+    turned to ``rotation`` (N, 3, 3), by the arm's own dofs with the least change from
+    ``seed`` (``hand_restored``), and (N,) whether it got there within ``HELD_TOL`` (and
+    ``HELD_TURN``)."""
+    goal = [Goal(f"{side}_hand", position=position, orientation=rotation)]
     model = prepare(skel, goal, seed, dofs=arm_dofs(skel, side), root_position=root[0],
                     root_rotation=root[1])  # fmt: skip
     res = solve_ta(skel, goal, seed, model=model, restarts=0, null_gain=0.0, tol=HELD_TOL / 2,

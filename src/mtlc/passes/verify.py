@@ -48,6 +48,9 @@ from mtlc.passes.hold import carried_postures
 from mtlc.passes.tool import is_stroke
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
+NEAR_DEEPEST = (
+    2e-3  # m: a stretch inside is reported at each line live where it is this near its deepest
+)
 # m a capsule may go into a model unreported: the capsules are round and the hands bare, so a
 # few millimetres is a sleeve brushing a panel, not a limb inside it (docs/collision.md)
 EQUIPMENT_TOLERANCE = 5e-3
@@ -694,9 +697,10 @@ class _Verifier:
             for first, last in failure_runs(depth[:, c] > TOLERANCE):
                 i = first + int(np.argmax(depth[first : last + 1, c]))
                 deepest(i, c, self.active(i, [ARM_TRACK["r" if limb.startswith("right") else "l"]]))
-                # and at every other line live while it is inside: the deepest frame of a
-                # long, even run is a matter of a tenth of a millimetre, and whoever reads
-                # the output finds the finding at the line live at the frame they measured
+                # and at every other line live while it is as deep, within ``NEAR_DEEPEST``:
+                # which frame of a long, even run is the deepest is a matter of a tenth of a
+                # millimetre, and whoever reads the output finds the finding at the line live
+                # at the frame they measured
                 for seg in self.segs:
                     if seg.end < self.t[first] - EPS or seg.start > self.t[last] + EPS:
                         continue
@@ -704,7 +708,7 @@ class _Verifier:
                     b = first + int(
                         np.searchsorted(self.t[first : last + 1], seg.end + EPS, "right")
                     )
-                    inside = np.flatnonzero(depth[a:b, c] > TOLERANCE)
+                    inside = np.flatnonzero(depth[a:b, c] > depth[i, c] - NEAR_DEEPEST)
                     if inside.size:
                         k = a + int(inside[np.argmax(depth[a + inside, c])])
                         deepest(k, c, seg)

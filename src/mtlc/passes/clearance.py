@@ -92,6 +92,12 @@ SWIVEL_PRICE = 0.003  # m of depth a radian of turn is worth: turned no further 
 # outputs over 12 deg, 37 since.)
 PLAN_SLACK = math.radians(360.0) / CORRECTED_JOINT_SPEED - 1.0
 GIVE_BACK_SLACK = PLAN_SLACK
+# ...but a run of corrected frames longer than this (an arm kept clear through a long carry)
+# only where it flips (four times the speed): one fast frame in a 5.6-minute walk's run gave
+# the whole walk's correction back (the arm inside the body throughout) after 4.7 s of trying
+# to even out 20,128 frames (fuzz case 6270); a short spike there is the despike pass's
+LONG_RUN = PLAN_FRAMES
+FLIP_SLACK = 3.0
 FLIP_SHARES = (0.75, 0.5, 0.25)  # ...or of its correction, tried before it is given back
 
 
@@ -410,6 +416,15 @@ def flips_evened(
     flipped = (
         worse_runs_undone(q, q, solved, t, CORRECTED_JOINT_SPEED, held, slack) != solved
     ).any(axis=1)
+    flip: np.ndarray | None = None
+    for a, b in runs_of(flipped) if slack < FLIP_SLACK else ():
+        if b - a > LONG_RUN:  # evened out or given back only where it flips
+            if flip is None:
+                flip = (
+                    worse_runs_undone(q, q, solved, t, CORRECTED_JOINT_SPEED, held, FLIP_SLACK)
+                    != solved
+                ).any(axis=1)
+            flipped[a:b] = flip[a:b]
     if not flipped.any():
         return solved
     out = solved.copy()

@@ -16,9 +16,12 @@ arrival) put on the straight way between its places in those two frames, by its 
 dofs with the least change from the interpolation (``clearance.hand_put``). A run takes it
 where every such hand gets there (``HELD_TOL``, ``HELD_TURN``), no step into, within or out of
 it is as large as the run's largest was, and neither arm goes deeper into the body than it was
-(``DEEPER``); else it stays as it was, and verify measures it like any other frame. The legs
-and the root are left as they are: a run where they jump too (a balance correction that a
-frame or two did not take) is not a spike of the arm, and stays.
+(``DEEPER``); else it stays as it was, and verify measures it like any other frame.
+
+Fastener turns are left as they are (a tool's strokes and a hand's turns: out and back by
+design, and the straight way between two frames of a stroke's arc would take the tip off the
+fastener). The legs and the root are left as they are: a run where they jump too (a balance
+correction that a frame or two did not take) is not a spike of the arm, and stays.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.clearance import hand_put, pinned
 from mtlc.passes.context import PassContext
+from mtlc.passes.tool import is_stroke
 
 SPIKE_SPEED = math.radians(360.0)  # rad/s: issue 19's fastest joint
 SPIKE_TIME = 0.1  # s: the longest run of frames taken for a spike (6 frames at 60 fps)
@@ -127,6 +131,18 @@ def upper_body(skel: Skeleton) -> NDArray[np.intp]:
     )  # fmt: skip
 
 
+def fastener_turns(ir: MotionIR, t: FloatArray) -> NDArray[np.bool_]:
+    """(N,) frames of a fastener turn (a tool's strokes, a hand's turns): their wrist and
+    forearm go out and back by design (issue 19 allows them 20 deg a frame), and the straight
+    way between two frames of a stroke's arc takes the tool's tip off the fastener."""
+    out = np.zeros(len(t), dtype=bool)
+    for seg in ir.segments:
+        path = seg.provenance.path
+        if is_stroke(seg) or (path and "turn_fastener" in path[-1]):
+            out |= (t >= seg.start - 1e-9) & (t <= seg.end + 1e-9)
+    return out
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     skel = ir.skeleton
@@ -135,7 +151,11 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     t = frames.time
     root = (frames.root_position, frames.root_rotation)
     cols = upper_body(skel)
-    runs = spikes(frames.q[:, cols], t, SPIKE_SPEED, SPIKE_TIME)
+    turning = fastener_turns(ir, t)
+    runs = [
+        (a, b) for a, b in spikes(frames.q[:, cols], t, SPIKE_SPEED, SPIKE_TIME)
+        if not turning[a : b + 1].any()
+    ]  # fmt: skip
     if not runs:
         return ir
     rows = np.concatenate([np.arange(a + 1, b) for a, b in runs])

@@ -121,9 +121,9 @@ def hand_targets(
 
 
 def upper_body(skel: Skeleton) -> NDArray[np.intp]:
-    """The dofs above the pelvis: spine, neck, head, clavicles and both arms (a spike of the
-    arm comes with the trunk's: balance leaned two frames 2 deg further and the arms, re-solved
-    for their hands, took the other branch)."""
+    """The dofs above the pelvis: spine, neck, head, clavicles and both arms, straightened
+    together (the pump's two arms took their other branch in the same two frames, and an
+    arm straightened alone under a trunk that moved with it cannot keep its hand)."""
     return np.array(
         [j for j, n in enumerate(skel.dof_names) if n.split("_")[-2] in UPPER_PARTS
          or n.split("_")[0] in UPPER_PARTS],

@@ -86,12 +86,11 @@ STRAIGHT_ARM = 0.03  # m: an elbow this close to the shoulder-wrist line is not 
 # with the arm inside) is left to the frame-by-frame solve, which bounds its own work
 PLAN_FRAMES = 1800
 SWIVEL_PRICE = 0.003  # m of depth a radian of turn is worth: turned no further than it must
-# a held arm's run of corrected frames is evened out where a step goes this share of
-# ``CORRECTED_JOINT_SPEED`` over it: issue 19's 360 deg/s. (At three times the share, four
-# times the speed, steps of 20 deg in an output frame stood: bench/procedures had 100 of 182
-# outputs over 12 deg, 37 since.)
-PLAN_SLACK = math.radians(360.0) / CORRECTED_JOINT_SPEED - 1.0
-GIVE_BACK_SLACK = PLAN_SLACK
+# a held arm's run of corrected frames (and where the plan turned the elbow) is evened out
+# where a step goes this share of ``CORRECTED_JOINT_SPEED`` over it: issue 19's 360 deg/s. (At
+# three times the share, four times the speed, steps of 20 deg in an output frame stood:
+# bench/procedures had 100 of 182 outputs over 12 deg, 37 since.)
+GIVE_BACK_SLACK = math.radians(360.0) / CORRECTED_JOINT_SPEED - 1.0
 # ...but a run of corrected frames longer than this (an arm kept clear through a long carry)
 # only where it flips (four times the speed): one fast frame in a 5.6-minute walk's run gave
 # the whole walk's correction back (the arm inside the body throughout) after 4.7 s of trying
@@ -231,7 +230,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         # 26 deg in one output frame where the solve yielded the hand's orientation)
         if start is not q:
             planned = (start != q).any(axis=1)
-            result = flips_evened(skel, start, result, root, side, frames.time, planned, PLAN_SLACK)
+            result = flips_evened(skel, start, result, root, side, frames.time, planned)
         result = flips_evened(skel, start, result, root, side, frames.time, held)
         if start is not q:
             # measured against the plan, a run given back is the plan's, whose own turn can

@@ -13,7 +13,7 @@ body (spine, neck, clavicles, arms: ``upper_body``) enters and leaves faster tha
 to the frame after it would not, is given that straight way: those dofs interpolated across
 it, and each hand that has a goal there (``clearance.pinned``: a contact, a grip, a reach's
 arrival) put on the straight way between its places in those two frames, by its arm's own
-dofs with the least change from the interpolation (``clearance.hand_put``). A run takes it
+dofs with the least change from the interpolation (``hand_way``, ``clearance.hand_put``). A run takes it
 where every such hand gets there (``HELD_TOL``, ``HELD_TURN``), no step into, within or out of
 it is as large as the run's largest was, and neither arm goes deeper into the body than it was
 (``DEEPER``); else it stays as it was, and verify measures it like any other frame.
@@ -99,23 +99,14 @@ def turned_between(Ra: FloatArray, Rb: FloatArray, w: FloatArray) -> FloatArray:
     return quat_to_matrix(q)
 
 
-def hand_targets(
-    skel: Skeleton,
-    q: FloatArray,
-    t: FloatArray,
-    root: tuple[FloatArray, FloatArray],
-    side: str,
-    a: int,
-    b: int,
+def hand_way(
+    place: FloatArray, rot: FloatArray, t: FloatArray, a: int, b: int
 ) -> tuple[FloatArray, FloatArray]:
-    """Where the ``side`` hand goes over the frames between ``a`` and ``b``: from frame ``a``'s
-    place and orientation to frame ``b``'s, straight and about one axis. Not where the run
-    had it: a frame one pass left alone between two it corrected has its hand where it was
-    before the correction, 20 mm off its neighbours' way (a ceiling cassette, female P1)."""
-    site = f"{side}_hand"
-    ends = np.array([a, b])
-    pose = forward(skel, q[ends], root[0][ends], root[1][ends], with_axes=False)
-    place, rot = site_positions(skel, pose, site), site_rotation(skel, pose, site)
+    """Where a hand goes over the frames between ``a`` and ``b``, given its ``place`` (2, 3)
+    and orientation ``rot`` (2, 3, 3) in those two frames: straight, and about one axis. Not
+    where the run had it: a frame one pass left alone between two it corrected has its hand
+    where it was before the correction, 20 mm off its neighbours' way (a ceiling cassette,
+    female P1)."""
     w = (t[a + 1 : b] - t[a]) / (t[b] - t[a])
     return (1.0 - w)[:, None] * place[0] + w[:, None] * place[1], turned_between(rot[0], rot[1], w)
 
@@ -164,11 +155,15 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     new = was.copy()
     new[:, cols] = np.concatenate([straight(frames.q[:, cols], t, a, b) for a, b in runs])
     ok = np.ones(len(rows), dtype=bool)
+    ends = np.array([(a, b) for a, b in runs]).ravel()  # the frames around the runs, posed once
+    around = forward(skel, frames.q[ends], root[0][ends], root[1][ends], with_axes=False)
     for side in SIDES:
         at = np.flatnonzero(pinned(ir, side, t)[rows])
         if not at.size:
             continue
-        targets = [hand_targets(skel, frames.q, t, root, side, a, b) for a, b in runs]
+        place = site_positions(skel, around, f"{side}_hand").reshape(-1, 2, 3)
+        rot = site_rotation(skel, around, f"{side}_hand").reshape(-1, 2, 3, 3)
+        targets = [hand_way(place[k], rot[k], t, a, b) for k, (a, b) in enumerate(runs)]
         site = np.concatenate([p for p, _ in targets])[at]
         turn = np.concatenate([r for _, r in targets])[at]
         at_root = (sub_root[0][at], sub_root[1][at])

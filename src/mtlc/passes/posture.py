@@ -511,7 +511,7 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     ground = state.ir.ground
     plan = plan_kneel(state.skel, q0, root, ground, knees, seg.end - seg.start)
     frame = (root.copy(), _heading(rot), ground)
-    _key_kneel(seg, plan, q0, frame, plan, state, ctx, "kneel_arms")
+    _key_kneel(seg, plan, q0, frame, plan, state, ctx)
 
 
 KNEELING_TOL = 0.02  # m: knees this close to where the last kneel left them are still there
@@ -569,22 +569,22 @@ def _kneel_from_kneel(
         piece = plan.window(cut, whole).reversed(duration)
         standing = plan.window(0.0, cut)
     q0 = state.q_at(seg.start, skip=seg)
-    _key_kneel(seg, piece, q0, frame, standing, state, ctx, "kneel_on")
+    _key_kneel(seg, piece, q0, frame, standing, state, ctx)
 
 
 def _key_kneel(
     seg: Segment, played: KneelPlan, q0: FloatArray, frame: tuple[FloatArray, float, float],
-    standing: KneelPlan, state: PoseState, ctx: PassContext, marker: str,
+    standing: KneelPlan, state: PoseState, ctx: PassContext,
 ) -> None:  # fmt: skip
     """Key the ``played`` plan and the free arms on ``seg``, and record ``standing`` (the plan
-    from standing to where ``seg`` leaves the body, for a later stand or kneel) under
-    ``marker``'s restater."""
+    from standing to where ``seg`` leaves the body, for a later stand or kneel), marked for
+    ``restate_kneel``."""
     _keyed(seg, played, seg.start, frame)
     sides = tuple(a[0] for a in free_arms(state.ir, seg))
     _kneel_arms(seg, played, q0, sides, state.skel)
     ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (standing, frame)
     state.add(seg)
-    mark(ctx.cache, seg, marker)
+    mark(ctx.cache, seg, "kneel")
 
 
 def _faded_in(piece: KneelPlan, start: FloatArray) -> FloatArray:
@@ -1116,8 +1116,7 @@ def restate_rest(seg: Segment, state: PoseState) -> None:
 RESTATERS = {
     "rest": restate_rest,
     "twist": restate_twist,
-    "kneel_arms": restate_kneel,
-    "kneel_on": restate_kneel,
+    "kneel": restate_kneel,
     "stand_arms": restate_stand_arms,
     "stand_from_kneel": restate_stand_from_kneel,
     "wide_stand": restate_wide_stand,

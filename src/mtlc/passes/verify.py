@@ -48,9 +48,8 @@ from mtlc.passes.hold import carried_postures
 from mtlc.passes.tool import is_stroke
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
-NEAR_DEEPEST = (
-    2e-3  # m: a stretch inside is reported at each line live where it is this near its deepest
-)
+# m: a stretch inside is reported at each line live where it is this near its deepest
+NEAR_DEEPEST = 2e-3
 # m a capsule may go into a model unreported: the capsules are round and the hands bare, so a
 # few millimetres is a sleeve brushing a panel, not a limb inside it (docs/collision.md)
 EQUIPMENT_TOLERANCE = 5e-3
@@ -704,10 +703,8 @@ class _Verifier:
                 for seg in self.segs:
                     if seg.end < self.t[first] - EPS or seg.start > self.t[last] + EPS:
                         continue
-                    a = first + int(np.searchsorted(self.t[first : last + 1], seg.start - EPS))
-                    b = first + int(
-                        np.searchsorted(self.t[first : last + 1], seg.end + EPS, "right")
-                    )
+                    a = max(first, int(np.searchsorted(self.t, seg.start - EPS)))
+                    b = min(last + 1, int(np.searchsorted(self.t, seg.end + EPS, "right")))
                     inside = np.flatnonzero(depth[a:b, c] > depth[i, c] - NEAR_DEEPEST)
                     if inside.size:
                         k = a + int(inside[np.argmax(depth[a + inside, c])])

@@ -289,7 +289,8 @@ def keep_rigid(
             q[:, arms] = keyed + let_go
     if held is not None:
         _fade_out(frames, rows[-1], q[-1] - frames.q[rows[-1]], carry.end + held)
-    frames.q[rows] = q
+    # the solver's steps end up to 0.04 deg past a limit (MT0513 on the avionics unit's walk)
+    frames.q[rows] = np.clip(q, skel.lower, skel.upper)  # type: ignore[attr-defined]
 
 
 def solve_smoothed(

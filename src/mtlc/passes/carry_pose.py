@@ -1,4 +1,4 @@
-"""Pass 5c: a part carried in both hands on a walk is held near the body (issue 19).
+"""Pass 5c: a part carried on a walk is held near the body, the trunk upright (issue 19).
 
 A walk keeps the arms as the reach before it left them: the avionics unit, slid out of its rack
 at 1.65 m, was carried 4.5 s to the trolley at head height, the panel at the height of its
@@ -7,20 +7,33 @@ near waist height: the load's moment about the lower back and the shoulders' is 
 (NIOSH lifting equation's horizontal multiplier, Waters, Putz-Anderson, Garg & Fine 1993,
 "Revised NIOSH equation for the design and evaluation of manual lifting tasks", Ergonomics
 36(7):749-776: the load's horizontal distance from the ankles' mid-point is its largest factor).
+A walk also kept the trunk the lift left: 46 of 140 carried walks on bench/procedures and the
+examples went bent 20-76 deg from start to end (a wheel carried 4.5 s at 76 deg).
 
-Here, on the dense frames of each walk during which both hands hold one two-handed part
-(``carry.carries``), the arms are led to a carry pose and back: the hands' mid-point at the
-manikin's standing elbow height (its neutral pose's, arms hanging) and ``HOLD_AHEAD`` in front
-of the trunk (the middle of a part 30 cm deep), the two hands placed about it as they were when
-the walk started (the part keeps its width; the hands' turn is left to the IK). The pose's arm
-angles (shoulders, elbows, wrists; not the forearm's twist) are solved once, at the walk's
-first frame; from the walk's start and before its end minimum-jerk ramps at most ``ARM_SPEED``
-fast take the hands there and back on straight lines in the body's frame
-(``hands_on_their_path``), so the walk ends with the arms where the reach after it was solved
-from (the place starts from there). Where the way takes a forearm or hand into the body's
-clearance, or the pose more than ``KEEP_OUT`` into it, the pose is tried higher and further
-out (``TRIES``). A walk too short for both ramps, whose part is already near the pose, or with
-no pose that passes is left as it was.
+Here, on the dense frames of each walk during which both hands hold a part (one two-handed
+part, ``carry.carries``, or a part each: a hatch held by its two edges is not recognised as
+one, and is kept as it is between the hands), the arms are led to a carry pose and back: the
+hands' mid-point at the manikin's standing elbow height (its neutral pose's, arms hanging) and
+``HOLD_AHEAD`` in front of the trunk (the middle of a part 30 cm deep), the two hands placed
+about it as they were when the walk started (the part keeps its width; the hands' turn is
+left to the IK), and the trunk goes upright (``trunk_offset``: lumbar and thorax to their rest
+pose) on the same ramps. The pose's arm angles (shoulders, elbows, wrists; not the forearm's
+twist) are solved once, at the walk's first frame on the upright trunk; from the walk's start
+and before its end minimum-jerk ramps take the hands there and back on straight lines in the
+body's frame from where the trunk alone would take them (``hands_on_their_path``, ``_borne``),
+so the walk ends with the trunk and arms where the reach after it was solved from (the place
+starts from there). The ramps' joint speed peaks at ``ARM_SPEED``, or up to ``FAST_ARM_SPEED``
+on a walk too short for that. Where the way takes a forearm or hand into the body's clearance,
+or the pose more than ``KEEP_OUT`` into it, the pose is tried higher and further out
+(``TRIES``); where none passes with the trunk upright, the trunk is left as it was and the
+arms alone are tried. A walk too short for both ramps, whose part is already near the pose,
+or with no pose that passes is left as it was.
+
+A part carried in one hand (``carried_alone``: the grip closed, off any site, the arm with no
+segment during the walk) is carried at ``CARRY_ARM`` (upper arm near the trunk, elbow at 90
+deg), the trunk upright, on the same ramps (``carry_walk_alone``), in joint angles; kept only
+if neither arm goes deeper into the body's clearance (the trunk takes the free arm with it),
+else the arm alone, else as it was.
 
 Through a posture (``carry_posture``, the posture analogue): a hand that carries its part
 through a squat, kneel, stand or bend (``hold.carried_postures``) and has no goal of its own
@@ -40,17 +53,23 @@ import math
 import numpy as np
 
 from mtlc.body import forward, site_positions
-from mtlc.body.capsules import body_capsules
+from mtlc.body.capsules import body_capsules, capsule_segments, collision_capsules
 from mtlc.body.ik import Goal, solve_ta
 from mtlc.body.ik.clearance import penetrations
 from mtlc.body.kinematics import quat_to_matrix
 from mtlc.body.skeleton import Skeleton
+from mtlc.geometry.clearance import scene_pieces
+from mtlc.geometry.distance import MeshIndex
+from mtlc.geometry.held import _hand_frames as hand_frames
+from mtlc.geometry.held import _placements
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.carry import Carry, carries
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import ARM_HAND, _arm_dofs, carried_postures
+from mtlc.passes.detour import HORIZON, WORDS, grasped_parts
+from mtlc.passes.hold import ARM_HAND, _arm_dofs, carried_postures, closed_at, on_site
 from mtlc.passes.profile import minimum_jerk
-from mtlc.passes.settle import keep_until_keyed
+from mtlc.passes.settle import NEAR as TRUNK_NEAR
+from mtlc.passes.settle import TRUNK, keep_until_keyed
 
 HANDS = ("r_hand", "l_hand")
 SOLES = ("r_heel", "r_toe", "l_heel", "l_toe")
@@ -59,16 +78,24 @@ SIDES = ("r", "l")
 # or hand, deeper than it was: the clearance pass swings the elbow out of that much (the
 # access panel's left forearm, 20 mm), a held hand's pose kept
 KEEP_OUT = -0.025
+DEEPER = 0.002  # m: see ``_kept_clear``
 HOLD_AHEAD = (
     0.15  # m the hands' mid-point is in front of the trunk: the middle of a part 30 cm deep
 )
-ARM_SPEED = math.radians(150.0)  # rad/s: the ramps' mean joint speed at most (their peak 280)
+ARM_SPEED = math.radians(150.0)  # rad/s: the ramps' peak joint speed at most (mean 80)
+# rad/s: on a walk too short for ramps at ARM_SPEED, their peak at most (issue 19: 360)
+FAST_ARM_SPEED = math.radians(300.0)
+# rad/s: a joint on the hands' straight way at most (``_peak_speed``): two dense frames make an
+# output frame's step, 10 deg at 30 fps, under issue 19's 12
+PATH_SPEED = math.radians(300.0)
+RETIME_MARGIN = 0.05  # the re-timed ramps this much longer than the measured speed asks
 PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
 MIN_RAMP = 0.6  # s: the shortest ramp in or out
 TRIES = 4  # carry poses tried, each RAISE higher and AWAY further out than the one before
 RAISE = 0.05  # m
 AWAY = 0.03  # m
 NEAR = 0.08  # m: a part whose hands are this close to the carry pose already stays
+HOLD_WIDTH = 1e-3  # m: two hands holding apart keep their distance this well (``_width_kept``)
 PATH_TOL = 0.03  # m: the hands on their way to the carry pose and back within this of their path
 SOLVE_TOL = 2e-3  # m: the carry pose's hands within this of their targets, or no carry pose
 RESTARTS = (
@@ -87,7 +114,8 @@ CARRY_ARM = {"shoulder_flex": 15.0, "shoulder_rot": 20.0, "elbow_flex": 90.0,
 LATE = (0.0, 0.25, 0.4, 0.5, 0.6)
 POSE_NEAR = math.radians(5.0)
 RISE_MIN = 0.05  # m the shoulders rise or fall over a posture to set the part's progress
-MAX_SWING = 0.15  # rad an arm's solved path may change in one dense frame (9 deg at 60 fps)  # rad: an arm this close to the carry pose already stays
+PATH_LEVELS = 17  # steps along the carry's way where its frames are seeded from it (``_followed``)
+MAX_SWING = 0.15  # rad an arm's solved path may change in one dense frame (9 deg at 60 fps)
 
 
 def elbow_height(skel: Skeleton) -> float:
@@ -125,8 +153,12 @@ def ramp(t: FloatArray, start: float, end: float, length: float) -> FloatArray:
     return np.minimum(rise, fall) * ((t >= start - EPS) & (t <= end + EPS))
 
 
-def carry_walk(skel: Skeleton, frames: Frames, start: float, end: float, ground: float) -> bool:
-    """Lead the arms to the carry pose and back over one walk's frames, in place. Whether it
+def carry_walk(
+    skel: Skeleton, frames: Frames, start: float, end: float, ground: float,
+    meshes: CarriedMeshes | None = None, rigid: bool = True,
+) -> bool:  # fmt: skip
+    """Lead the arms to the carry pose and back over one walk's frames, in place, the trunk
+    upright while they are there (``upright``) where that passes, else as it was. Whether it
     did (not: too short, already near, or no carry pose within ``TRIES`` that the arms reach
     and keep clear of the body on the way)."""
     t = frames.time
@@ -141,79 +173,289 @@ def carry_walk(skel: Skeleton, frames: Frames, start: float, end: float, ground:
     ahead = quat_to_matrix(rot) @ np.array([0.0, 0.0, 1.0])
     ahead[1] = 0.0
     ahead /= max(float(np.linalg.norm(ahead)), EPS)
-    for k in range(TRIES):  # higher and further out each time: clear of the hips and thighs
-        targets = base + k * (RAISE * np.array([0.0, 1.0, 0.0]) + AWAY * ahead)
-        if float(np.linalg.norm(hands - targets, axis=1).max()) <= NEAR:
-            return False
-        moved = _carried(skel, frames, rows, start, end, (root, rot), hands, targets)
-        if moved is not None:
-            on, q = moved
-            frames.q[on] = q
-            return True
+    straighten = trunk_offset(skel, q0)
+    for trunk in [straighten, None] if straighten is not None else [None]:
+        for k in range(TRIES):  # higher and further out each time: clear of the hips and thighs
+            targets = base + k * (RAISE * np.array([0.0, 1.0, 0.0]) + AWAY * ahead)
+            if trunk is None and float(np.linalg.norm(hands - targets, axis=1).max()) <= NEAR:
+                return False
+            moved = _carried(
+                skel, frames, rows, (start, end), (root, rot), hands, targets, trunk, meshes,
+                rigid,
+            )  # fmt: skip
+            if moved is not None:
+                on, q = moved
+                frames.q[on] = q
+                return True
     return False
 
 
+def trunk_offset(skel: Skeleton, q: FloatArray) -> tuple[list[int], FloatArray] | None:
+    """(the trunk's dofs, their way from ``q`` to the rest pose), or None where the trunk is
+    within ``settle.NEAR`` of it already. People walk with a load upright: a walk kept the lean
+    of the lift before it (a wheel carried 4.5 s with the trunk bent 45-76 deg, 14 manikins)."""
+    dofs = [skel.dof_index(n) for n in TRUNK]
+    offset = np.asarray(skel.q_comfort, dtype=float)[dofs] - q[dofs]
+    if float(np.abs(offset).max(initial=0.0)) <= TRUNK_NEAR:
+        return None
+    return dofs, offset
+
+
 def _carried(
-    skel: Skeleton, frames: Frames, rows: np.ndarray, start: float, end: float,
+    skel: Skeleton, frames: Frames, rows: np.ndarray, walk: tuple[float, float],
     start_root: tuple[FloatArray, FloatArray], hands: FloatArray, targets: FloatArray,
+    trunk: tuple[list[int], FloatArray] | None, meshes: CarriedMeshes | None = None,
+    rigid: bool = True,
 ) -> tuple[np.ndarray, FloatArray] | None:  # fmt: skip
     """The walk's frames that the carry to ``targets`` and back changes, and their poses; None
     where the arms do not reach it, the walk is too short for the ramps, or the way there or
-    back takes a forearm or hand into the body's clearance."""
+    back takes a forearm or hand into the body's clearance. ``trunk``: its dofs and way to
+    upright, on the same ramps (the arms solved on it), or None (left as it is)."""
     q0 = frames.q[rows[0]]
+    delta = np.zeros_like(q0)
+    if trunk is not None:
+        delta[trunk[0]] = trunk[1]
     # positions only: a hand turned to hold the part overhead cannot keep that turn at the
     # waist (1.3 rad short); the part's axis is the line between the hands (``carry``)
     goals = [Goal(h, position=targets[k]) for k, h in enumerate(HANDS)]
     dofs = sorted({d for h in HANDS for d in _arm_dofs(skel, h)})
-    res = solve_ta(skel, goals, q0, dofs=dofs, root_position=start_root[0],
+    res = solve_ta(skel, goals, q0 + delta, dofs=dofs, root_position=start_root[0],
                    root_rotation=start_root[1], restarts=RESTARTS, tol=SOLVE_TOL)  # fmt: skip
     if not float(np.max(res.position_error)) <= SOLVE_TOL:
         return None
-    delta = np.zeros_like(q0)
     delta[dofs] = res.q[0, dofs] - q0[dofs]
-    length = max(MIN_RAMP, PEAK * float(np.abs(delta).max()) / ARM_SPEED)
-    if 2.0 * length > end - start:
-        return None
+    # with the trunk rising, the hands' ways start from where it takes them, or from where
+    # they are: each kept a wheel's or a battery's forearm clear where the other did not
+    for borne in (True, False) if trunk is not None else (False,):
+        stretch = 1.0
+        for _ in range(2):  # the ramps timed from the joints' change, then from the path's speed
+            on, w = _ramped(frames, rows, walk, delta, stretch)
+            if on is None:
+                return None
+            moved = hands_on_their_path(
+                skel, frames, on, w, start_root, hands, targets, delta, dofs, borne
+            )
+            if moved is None:
+                break
+            speed = _peak_speed(frames, on, moved, dofs)
+            if speed <= PATH_SPEED:
+                if (
+                    _kept_clear(skel, frames, on, w, moved, SIDES)
+                    and (meshes is None or meshes.kept_out(frames, on, moved))
+                    and (rigid or _width_kept(skel, frames, on, moved, hands))
+                ):
+                    return on, moved
+                break
+            stretch *= speed / PATH_SPEED * (1.0 + RETIME_MARGIN)
+    return None
+
+
+def _width_kept(
+    skel: Skeleton, frames: Frames, on: np.ndarray, moved: FloatArray, hands: FloatArray
+) -> bool:
+    """Whether the hands stay within ``HOLD_WIDTH`` of their distance at the walk's start on
+    every frame: no carry pass holds what two hands hold apart (two handles, a hatch's two
+    edges) rigid after this one, and a part held by two handles 89 cm apart was stretched
+    2 mm (female P5)."""
+    now = _hands_at(skel, frames, on, moved)
+    width = np.linalg.norm(now[:, 0] - now[:, 1], axis=1)
+    return bool(np.abs(width - np.linalg.norm(hands[0] - hands[1])).max() <= HOLD_WIDTH)
+
+
+def _peak_speed(frames: Frames, on: np.ndarray, moved: FloatArray, dofs: list[int]) -> float:
+    """rad/s: the fastest of the ``dofs`` over the rows ``on`` posed ``moved`` (and the frames
+    either side, as they are). The hands' straight way is not the joints' straight way: timed
+    from the joints' change alone, an arm bringing the avionics unit down moved at 400-440
+    deg/s (male P10: 13.7 deg in an output frame)."""
+    lo, hi = max(int(on[0]) - 1, 0), min(int(on[-1]) + 1, len(frames.time) - 1)
+    q = np.vstack([frames.q[lo, dofs], moved[:, dofs], frames.q[hi, dofs]])
+    t = np.r_[frames.time[lo], frames.time[on], frames.time[hi]]
+    dt = np.maximum(np.diff(t), EPS)
+    return float((np.abs(np.diff(q, axis=0)) / dt[:, None]).max(initial=0.0))
+
+
+def _ramped(
+    frames: Frames, rows: np.ndarray, walk: tuple[float, float], delta: FloatArray,
+    stretch: float = 1.0,
+) -> tuple[np.ndarray, FloatArray] | tuple[None, None]:  # fmt: skip
+    """The walk's rows a ramp of ``delta`` in and out changes and their weights; (None, None)
+    where the walk is too short for both ramps at ``FAST_ARM_SPEED``. ``stretch``: the ramps
+    that long again (or more) for a way whose joints move faster than ``delta``'s share."""
+    start, end = walk
+    way = PEAK * float(np.abs(delta).max()) * stretch
+    length = max(MIN_RAMP, way / ARM_SPEED)
+    if 2.0 * length > end - start:  # a short walk: faster ramps, meeting in its middle
+        length = 0.5 * (end - start)
+        if length < max(MIN_RAMP, way / FAST_ARM_SPEED) - EPS:
+            return None, None
     w = ramp(frames.time[rows], start, end, length)
-    on, w = rows[w > 0.0], w[w > 0.0]  # the walk's ends stay as they were, to the bit
-    moved = hands_on_their_path(skel, frames, on, w, start_root, hands, targets, delta, dofs)
-    if moved is None:
-        return None
+    return rows[w > 0.0], w[w > 0.0]  # the walk's ends stay as they were, to the bit
+
+
+def _kept_clear(
+    skel: Skeleton, frames: Frames, on: np.ndarray, w: FloatArray, moved: FloatArray,
+    sides: tuple[str, ...],
+) -> bool:  # fmt: skip
+    """Whether the poses ``moved`` of the rows ``on`` keep the arms of ``sides`` out of the
+    body's clearance on the way (``w`` < 1) and no more than ``KEEP_OUT`` into it in the carry
+    pose, or no deeper than they were."""
     root_on = (frames.root_position[on], frames.root_rotation[on])
-    before = penetrations(skel, frames.q[on], root_on, SIDES)
-    after = penetrations(skel, moved, root_on, SIDES)
+    before = penetrations(skel, frames.q[on], root_on, sides)
+    after = penetrations(skel, moved, root_on, sides)
     # on the way an arm stays out of the clearance (the clearance pass, fighting the held
     # hands' rigid part there, left forearms 2-7 mm in the trunk: the avionics unit coming
     # down from overhead); held in the carry pose, ``KEEP_OUT`` deep at most
     allowed = np.where(w < 1.0, 0.0, -KEEP_OUT)
-    if any((after[s] > np.maximum(before[s], allowed)).any() for s in SIDES):
-        return None  # the way there or back passes an arm by the body: a path planner's
-    return on, moved
+    # a frame whose arm was inside already (the overhead hatch's right forearm, 99 mm as the
+    # walk starts; the clearance pass takes it out) may go ``DEEPER`` more on the way out
+    return not any(
+        (after[s] > np.maximum(before[s] + np.where(before[s] > 0.0, DEEPER, 0.0), allowed)).any()
+        for s in sides
+    )
+
+
+def carry_walk_alone(
+    skel: Skeleton, frames: Frames, walk: tuple[float, float], tracks: list[str],
+    meshes: CarriedMeshes | None = None,
+) -> bool:  # fmt: skip
+    """Lead each arm of ``tracks`` (its hand carries a part of its own) to ``CARRY_ARM`` and
+    the trunk upright over the walk, and back before it ends, in place; the arms alone where
+    the trunk's way does not pass. Whether it did (not: too short, already near, or every way
+    takes an arm deeper into the body)."""
+    t = frames.time
+    rows = np.flatnonzero((t >= walk[0] - EPS) & (t <= walk[1] + EPS))
+    if rows.size < 3:
+        return False
+    q0 = frames.q[rows[0]]
+    arm = np.zeros_like(q0)
+    for track in tracks:
+        dofs, angles = carry_arm(skel, track)
+        arm[dofs] = angles - q0[dofs]
+    trunk = trunk_offset(skel, q0)
+    tries = [arm]
+    if trunk is not None:
+        both = arm.copy()
+        both[trunk[0]] = trunk[1]
+        tries.insert(0, both)
+    # the trunk takes the free arm with it: its hand met a swinging thigh as the trunk bent
+    # again at the walk's end (the rack's spare, male P50: 53 mm)
+    for delta in tries:
+        if float(np.abs(delta).max()) <= POSE_NEAR:
+            continue
+        on, w = _ramped(frames, rows, walk, delta)
+        if on is None:
+            continue
+        moved = skel.clip(frames.q[on] + w[:, None] * delta[None])
+        if _kept_clear(skel, frames, on, w, moved, SIDES) and (
+            meshes is None or meshes.kept_out(frames, on, moved)
+        ):
+            frames.q[on] = moved
+            return True
+    return False
 
 
 def hands_on_their_path(
     skel: Skeleton, frames: Frames, rows: np.ndarray, w: FloatArray,
     start_root: tuple[FloatArray, FloatArray], hands: FloatArray, targets: FloatArray,
-    delta: FloatArray, dofs: list[int],
+    delta: FloatArray, dofs: list[int], borne: bool = False,
 ) -> FloatArray | None:  # fmt: skip
     """(len(rows), D) poses with both hands ``w`` of the way along straight lines from where
-    they were at the walk's start (``hands``) to ``targets``, both in the body's frame (the
-    walk's first frame's root, ``start_root``), solved from the joint blend ``w × delta``: blended in joint
-    angles alone, the hands went apart from 20 to 58 cm on the way down from overhead and the
-    rigid part's re-solve then put one 64 mm into the trunk (avionics unit, female P99). None
-    where a frame cannot be solved within ``PATH_TOL``."""
+    they were at the walk's start (``hands``; ``borne``: where the trunk alone takes them,
+    ``_borne``) to ``targets``, both in the body's frame (the
+    walk's first frame's root, ``start_root``), solved from the joint blend ``w × delta``:
+    blended in joint angles alone, the hands went apart from 20 to 58 cm on the way down from
+    overhead and the rigid part's re-solve then put one 64 mm into the trunk (avionics unit,
+    female P99). Where that seed takes a frame onto another branch of the arm, the frames are
+    seeded from the way followed in ``PATH_LEVELS`` steps (``_followed``). None where a frame
+    cannot be solved within ``PATH_TOL`` or an arm swings (``MAX_SWING``)."""
     origin, first = start_root[0], quat_to_matrix(start_root[1])
-    local0, local1 = (hands - origin) @ first, (targets - origin) @ first
+    local1 = (targets - origin) @ first
+    if borne:
+        local0 = _borne(skel, frames.q[rows[0]], start_root, hands, delta, dofs, w)
+    else:
+        local0 = np.broadcast_to((hands - origin) @ first, (len(w), *hands.shape))
     rot = np.asarray([quat_to_matrix(r) for r in frames.root_rotation[rows]])
-    local = local0[None] + w[:, None, None] * (local1 - local0)[None]
+    local = local0 + w[:, None, None] * (local1[None] - local0)
     world = np.einsum("nij,nkj->nki", rot, local) + frames.root_position[rows][:, None, :]
     seed = skel.clip(frames.q[rows] + w[:, None] * delta)
+    q = _path_solved(skel, frames, rows, world, seed, dofs)
+    if q is None:
+        way = _followed(skel, frames.q[rows[0]], start_root, local1, hands, delta, dofs, borne)
+        for k, d in enumerate(dofs):
+            seed[:, d] = np.interp(w, np.linspace(0.0, 1.0, PATH_LEVELS), way[:, k])
+        q = _path_solved(skel, frames, rows, world, seed, dofs)
+    return q
+
+
+def _path_solved(
+    skel: Skeleton, frames: Frames, rows: np.ndarray, world: FloatArray, seed: FloatArray,
+    dofs: list[int],
+) -> FloatArray | None:  # fmt: skip
+    """Both hands onto ``world`` (len(rows), 2, 3) on each row, from ``seed``; None where a
+    row is more than ``PATH_TOL`` off or an arm swings more than ``MAX_SWING`` a frame."""
     goals = [Goal(h, position=world[:, k]) for k, h in enumerate(HANDS)]
     res = solve_ta(skel, goals, seed, dofs=dofs, root_position=frames.root_position[rows],
                    root_rotation=frames.root_rotation[rows], restarts=0, tol=SOLVE_TOL)  # fmt: skip
     if not float(np.max(res.position_error)) <= PATH_TOL:
         return None
-    return np.asarray(res.q)
+    q = skel.clip(np.asarray(res.q))  # the solver's steps end up to 0.03 deg past a limit
+    # with the frames either side: a frame's solve that changed branch swung a shoulder's
+    # abduction 87 deg in one dense frame (the avionics unit, female P50, trunk straightened)
+    lo, hi = max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 1, len(frames.time) - 1)
+    way = np.vstack([frames.q[lo, dofs], q[:, dofs], frames.q[hi, dofs]])
+    if float(np.abs(np.diff(way, axis=0)).max(initial=0.0)) > MAX_SWING:
+        return None
+    return q
+
+
+def _borne(
+    skel: Skeleton, q0: FloatArray, start_root: tuple[FloatArray, FloatArray],
+    hands: FloatArray, delta: FloatArray, dofs: list[int], w: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """(len(w), 2, 3) where the hands would be, in the body's frame at the walk's start, with
+    the trunk ``w`` of its way (``delta`` off the arm ``dofs``) and the arms' angles as they
+    were: the ends the carry's straight ways start from. From the hands where the walk found
+    them, a trunk coming up from a 45 deg lean left them out of the arms' reach on the way
+    (a 14 kg battery, female P10: 141 mm)."""
+    origin, first = start_root[0], quat_to_matrix(start_root[1])
+    trunk = delta.copy()
+    trunk[dofs] = 0.0
+    if not trunk.any():
+        return np.broadcast_to((hands - origin) @ first, (len(w), *hands.shape))
+    q = skel.clip(q0[None] + w[:, None] * trunk[None])
+    n = len(w)
+    pose = forward(skel, q, np.repeat(origin[None], n, axis=0),
+                   np.repeat(np.asarray(start_root[1])[None], n, axis=0), with_axes=False)  # fmt: skip
+    return (np.asarray(site_positions(skel, pose, list(HANDS))) - origin) @ first
+
+
+def _followed(
+    skel: Skeleton, q0: FloatArray, start_root: tuple[FloatArray, FloatArray],
+    local1: FloatArray, hands: FloatArray, delta: FloatArray, dofs: list[int], borne: bool,
+) -> FloatArray:  # fmt: skip
+    """(PATH_LEVELS, len(dofs)) the arms' angles with the hands at ``PATH_LEVELS`` even shares
+    of their way to ``local1`` (in the body's frame; from ``hands``, or ``_borne``), each solved from the
+    one before (the trunk at the same share of ``delta``). The hands' way and the trunk are
+    the same in the body's frame on every frame of the walk, so one pass along it serves
+    them all: the arms stay on the branch they start on."""
+    origin, first = start_root[0], quat_to_matrix(start_root[1])
+    shares = np.linspace(0.0, 1.0, PATH_LEVELS)
+    if borne:
+        local0 = _borne(skel, q0, start_root, hands, delta, dofs, shares)
+    else:
+        local0 = np.broadcast_to((hands - origin) @ first, (PATH_LEVELS, *hands.shape))
+    out = np.empty((PATH_LEVELS, len(dofs)))
+    arm = q0[dofs]
+    for k, share in enumerate(shares):
+        seed = skel.clip(q0 + share * delta)
+        seed[dofs] = arm
+        world = (local0[k] + share * (local1 - local0[k])) @ first.T + origin
+        goals = [Goal(h, position=world[j]) for j, h in enumerate(HANDS)]
+        res = solve_ta(skel, goals, seed, dofs=dofs, root_position=origin,
+                       root_rotation=start_root[1], restarts=0, tol=SOLVE_TOL)  # fmt: skip
+        arm = np.asarray(res.q).reshape(-1)[dofs]
+        out[k] = arm
+    return out
 
 
 def carry_arm(skel: Skeleton, track: str) -> tuple[list[int], FloatArray]:
@@ -411,14 +653,102 @@ def _one_part(spans: list[Carry], posture: Segment) -> bool:
     return any(c.start <= posture.start + EPS and c.end >= posture.end - EPS for c in spans)
 
 
+class CarriedMeshes:
+    """The model parts (``geometry.held``: a CAD node a hand grasps) the hands hold on a walk,
+    to keep the body out of them: a carry pose knows nothing of a part's shape, and the
+    access panel's CAD part, brought in to the waist, went 12 mm into the pelvis and a forearm
+    13 mm into it (MT0515, female P5). The part is rigid in the hand that carries it over the
+    walk (it closed first; the right on a tie), where it was at the walk's start."""
+
+    def __init__(self, ir: MotionIR, walk: tuple[float, float]) -> None:
+        self.skel = ir.skeleton
+        self.ir = ir
+        self.parts: list[tuple[MeshIndex, str, list[str], FloatArray]] = []
+        models = [m for m in ir.geometry if len(m.faces)]
+        grasped = grasped_parts(ir, models) if models else []
+        if not grasped:
+            return
+        frames = ir.frames
+        t = frames.time
+        first = int(np.searchsorted(t, walk[0] - EPS))
+        pose = forward(self.skel, frames.q[: first + 1], frames.root_position[: first + 1],
+                       frames.root_rotation[: first + 1], with_axes=False)  # fmt: skip
+        hands = {side: hand_frames(ir, pose, side) for side in SIDES}
+        _, _, pieces = scene_pieces(models, grasped)
+        for part, index in pieces:
+            placement, kept = _placements(t[: first + 1], hands, part.holds)
+            over = [h for h in kept if h.start <= walk[0] + EPS and h.end >= walk[1] - EPS]
+            if not over:
+                continue
+            carrier = min(over, key=lambda h: (h.start, SIDES.index(h.side))).side
+            anchor = np.linalg.inv(hands[carrier][first]) @ placement[first]
+            holding = sorted({h.side for h in over})
+            self.parts.append((index, carrier, holding, anchor))
+        names = {f"{WORDS[s]} hand" for _, _, holding, _ in self.parts for s in holding}
+        self.caps = tuple(c for c in collision_capsules(self.skel) if c.name not in names)
+
+    def deepest(self, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+        """(len(rows),) how deep the body (not the hands that hold them) goes into the parts
+        with poses ``q`` on ``rows`` (m, positive inside; -inf: no part)."""
+        out = np.full(len(rows), -np.inf)
+        if not self.parts:
+            return out
+        pose = forward(self.skel, q, frames.root_position[rows], frames.root_rotation[rows],
+                       with_axes=False)  # fmt: skip
+        a, b, radii = capsule_segments(self.skel, pose, self.caps)
+        for index, carrier, _, anchor in self.parts:
+            place = hand_frames(self.ir, pose, carrier) @ anchor
+            rot, move = place[:, :3, :3], place[:, None, :3, 3]
+            la = np.einsum("nji,ncj->nci", rot, a - move).reshape(-1, 3)
+            lb = np.einsum("nji,ncj->nci", rot, b - move).reshape(-1, 3)
+            d = index.segment_distance(la, lb, HORIZON)
+            touching = np.flatnonzero(d <= 0.0)
+            if touching.size:
+                d[touching] = -index.through_depth(la[touching], lb[touching])
+            out = np.maximum(out, (radii[None, :] - d.reshape(len(rows), -1)).max(axis=1))
+        return out
+
+    def kept_out(self, frames: Frames, rows: np.ndarray, moved: FloatArray) -> bool:
+        """Whether ``moved`` takes the body no deeper into the parts than it was (or in)."""
+        if not self.parts:
+            return True
+        before = self.deepest(frames, rows, frames.q[rows])
+        after = self.deepest(frames, rows, moved)
+        return bool((after <= np.maximum(before, 0.0)).all())
+
+
+def carried_alone(ir: MotionIR, start: float, end: float) -> list[str]:
+    """The arm tracks whose hand carries a part of its own over the walk ``start``..``end``:
+    its grip closed at the start, not on a site, no segment of the arm during the walk."""
+    held = on_site(ir, np.array([start + EPS]))
+    out = []
+    for track, hand in ARM_HAND.items():
+        grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
+        busy = any(s.start < end - EPS and s.end > start + EPS for s in ir.on_track(track))
+        if not busy and closed_at(grips, start + EPS) and not bool(held[hand][0]):
+            out.append(track)
+    return out
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
-    if frames is None or not len(frames.time) or ir.skeleton is None:
+    skel = ir.skeleton
+    if frames is None or not len(frames.time) or skel is None:
         return ir
     carry_postures(ir, frames)
     spans = carries(ir)
     walks = sorted((s.start, s.end) for s in ir.on_track("root") if s.kind == "locomotion")
     for a, b in walks:
-        if any(c.start <= a + EPS and c.end >= b - EPS for c in spans):
-            carry_walk(ir.skeleton, frames, a, b, ir.ground)
+        tracks = carried_alone(ir, a, b)
+        # both hands closed: one part, or two kept as they are to each other (a hatch held by
+        # its two edges is not a two-handed part: carried apart, the arms would squeeze it)
+        rigid = any(c.start <= a + EPS and c.end >= b - EPS for c in spans)
+        alone = tracks and not any(c.start < b - EPS and c.end > a + EPS for c in spans)
+        if not (rigid or alone):
+            continue
+        meshes = CarriedMeshes(ir, (a, b)) if ir.geometry else None
+        if rigid or len(tracks) == 2:
+            carry_walk(skel, frames, a, b, ir.ground, meshes, rigid)
+        else:
+            carry_walk_alone(skel, frames, (a, b), tracks, meshes)
     return ir

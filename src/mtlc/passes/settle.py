@@ -12,7 +12,7 @@ and each arm to the comfort pose, on minimum-jerk ramps from the walk's start
 on the trunk as it was: then it goes back before the walk ends (``_settle_trunk``). An arm stays
 down until its next segment and is let go of over it (``keep_until_keyed``, which carry_pose
 uses too), unless its way down goes deeper into the body (``_deeper``). A walk that carries a
-part is left to carry_pose.
+part is left to carry_pose (its trunk too).
 """
 
 from __future__ import annotations
@@ -289,8 +289,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for start, end in walks:
         held = on_site(ir, np.array([start + EPS]))
         free = free_arms(ir, start, end, held)
-        # a part carried on the walk keeps the trunk the lift left: carry_pose, the rigid
-        # part's re-solve and the clearance pass own the arms there (straightened under a
-        # 14 kg battery, the hands went 94 mm into a thigh on the place after, female P95)
+        # a walk that carries a part: carry_pose straightens its trunk with the arms solved
+        # on it (straightened here, under arms solved for the lean, a 14 kg battery's hands
+        # went 94 mm into a thigh on the place after, female P95)
         settle_walk(skel, ir, frames, start, end, free, trunk=len(free) == len(ARM_HAND))
     return ir

@@ -2320,91 +2320,138 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=47.549638, duration=0.072)
     human.KeyRoot(47.6, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
-        'left_shoulder': (89.57, -29.205, 14.639), 'right_hip': (2.865, 0.0, 0.0),
-        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
-        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (21.299, -4.984, -31.471),
+        'head': (6.166, -0.446), 'right_shoulder': (34.395, 35.22, -9.877),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
     human.Walk((139.64, 0.0, 19.995), start=47.621638, duration=5.147368)
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
     human.KeyRoot(47.7, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
-        'head': (5.153, -0.373), 'right_elbow': (90.842, 24.897),
+        'spine_lumbar': (16.963, -11.415, 7.491), 'spine_thoracic': (-14.646, -6.386, 6.858),
+        'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
+        'right_shoulder': (34.296, 35.138, -9.797), 'right_elbow': (90.855, 24.897),
+        'right_wrist': (-16.557, -18.269), 'left_shoulder': (89.325, -29.131, 14.625),
+        'left_elbow': (21.338, 18.169), 'left_wrist': (0.884, -5.468),
         'right_hip': (6.469, -0.14, -0.543), 'right_knee': (12.394,), 'right_ankle': (5.926, -0.2),
         'left_hip': (7.318, 0.133, 0.546), 'left_knee': (13.849,), 'left_ankle': (6.19, 0.201),
     })
     human.KeyRoot(47.8, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'left_elbow': (21.157, 18.169),
+        'spine_lumbar': (16.556, -11.141, 7.311), 'spine_thoracic': (-14.294, -6.233, 6.693),
+        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167),
+        'right_shoulder': (33.057, 34.222, -9.176), 'right_elbow': (92.067, 24.897),
+        'right_wrist': (-16.435, -16.705), 'left_shoulder': (83.057, -27.8, 14.56),
+        'left_elbow': (30.387, 18.169), 'left_wrist': (0.2, -3.718),
         'right_hip': (7.231, -0.536, -2.481), 'right_knee': (14.699,),
         'right_ankle': (7.497, -0.844), 'left_hip': (9.478, 0.452, 2.517), 'left_knee': (18.021,),
         'left_ankle': (7.587, 0.86),
     })
     human.KeyRoot(47.9, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(47.9, {
+        'spine_lumbar': (15.523, -10.446, 6.855), 'spine_thoracic': (-13.403, -5.844, 6.275),
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_hip': (6.749, -0.973, -5.207),
-        'right_knee': (14.512,), 'right_ankle': (7.876, -1.574), 'left_hip': (17.261, 0.889, 2.279),
-        'left_knee': (34.508,), 'left_ankle': (16.48, 1.57),
+        'right_shoulder': (30.215, 31.95, -7.316), 'right_elbow': (94.889, 24.897),
+        'right_wrist': (-16.431, -15.074), 'left_shoulder': (72.648, -25.516, 14.533),
+        'left_elbow': (44.185, 18.171), 'left_wrist': (-1.247, -0.766),
+        'right_hip': (6.749, -0.973, -5.207), 'right_knee': (14.512,),
+        'right_ankle': (7.876, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
+        'left_ankle': (16.48, 1.57),
     })
     human.KeyRoot(48.0, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.538, -0.983, -8.152),
-        'right_knee': (16.709,), 'right_ankle': (8.265, -2.031),
-        'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
+        'spine_lumbar': (13.817, -9.298, 6.102), 'spine_thoracic': (-11.93, -5.202, 5.586),
+        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0),
+        'right_shoulder': (25.947, 28.134, -3.856), 'right_elbow': (98.733, 24.897),
+        'right_wrist': (-16.319, -13.599), 'left_shoulder': (60.066, -22.256, 14.409),
+        'left_elbow': (59.1, 18.172), 'left_wrist': (-3.441, 3.429),
+        'right_hip': (7.538, -0.983, -8.152), 'right_knee': (16.709,),
+        'right_ankle': (8.265, -2.031), 'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,),
+        'left_ankle': (18.612, 1.906),
     })
     human.KeyRoot(48.1, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
     human.KeyJoints(48.1, {
+        'spine_lumbar': (11.552, -7.773, 5.101), 'spine_thoracic': (-9.974, -4.349, 4.67),
+        'right_shoulder': (20.571, 23.172, 1.082), 'right_elbow': (102.321, 24.897),
+        'right_wrist': (-15.969, -12.585), 'left_shoulder': (46.74, -18.125, 13.863),
+        'left_elbow': (72.533, 18.172), 'left_wrist': (-5.949, 7.92),
         'right_hip': (10.748, 0.118, -10.871), 'right_knee': (23.204,),
         'right_ankle': (8.894, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
     human.KeyRoot(48.2, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
     human.KeyJoints(48.2, {
+        'right_shoulder': (14.517, 17.629, 6.58), 'right_elbow': (104.174, 24.897),
+        'right_wrist': (-15.228, -11.601), 'left_shoulder': (33.153, -13.313, 12.809),
+        'left_elbow': (83.487, 18.173), 'left_wrist': (-8.231, 11.472),
         'right_hip': (14.798, 2.323, -13.55), 'right_knee': (30.395,),
         'right_ankle': (8.708, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
     human.KeyRoot(48.3, (-0.775, 72.487, 58.303), (17.063, 0.0, 0.0))
     human.KeyJoints(48.3, {
+        'spine_lumbar': (6.301, -4.24, 2.783), 'spine_thoracic': (-5.441, -2.372, 2.547),
+        'right_shoulder': (8.349, 12.466, 11.592), 'right_elbow': (103.768, 24.897),
+        'right_wrist': (-14.266, -10.922), 'left_shoulder': (20.272, -8.403, 11.469),
+        'left_elbow': (90.67, 18.172), 'left_wrist': (-9.992, 13.705),
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.068,),
         'right_ankle': (8.191, -0.379), 'left_hip': (7.376, 2.073, -18.244), 'left_knee': (14.785,),
         'left_ankle': (7.133, -0.351),
     })
     human.KeyRoot(48.4, (0.121, 72.487, 58.354), (21.676, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'spine_thoracic': (-14.684, -6.403, 6.875), 'right_hip': (18.001, 7.349, -19.807),
-        'right_knee': (39.588,), 'right_ankle': (10.474, 0.616),
-        'left_hip': (7.677, 0.742, -13.765), 'left_knee': (14.625,),
+        'spine_lumbar': (3.895, -2.621, 1.72), 'spine_thoracic': (-3.363, -1.466, 1.575),
+        'right_shoulder': (2.923, 8.645, 15.539), 'right_elbow': (101.761, 24.897),
+        'right_wrist': (-13.419, -11.261), 'left_shoulder': (9.336, -4.466, 10.236),
+        'left_elbow': (93.702, 18.172), 'left_wrist': (-11.184, 14.685),
+        'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
+        'right_ankle': (10.474, 0.616), 'left_hip': (7.677, 0.742, -13.765), 'left_knee': (14.625,),
     })
     human.KeyRoot(48.5, (1.184, 72.487, 58.605), (27.492, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
-        'right_ankle': (17.903, 1.218), 'left_hip': (7.664, -0.797, -8.1), 'left_knee': (14.319,),
-        'left_ankle': (6.84, -1.859),
+        'spine_lumbar': (1.982, -1.334, 0.875), 'spine_thoracic': (-1.712, -0.746, 0.801),
+        'right_shoulder': (-1.177, 6.234, 18.053), 'right_wrist': (-12.879, -12.25),
+        'left_shoulder': (1.115, -2.023, 9.581), 'left_elbow': (94.248, 18.171),
+        'left_wrist': (-11.883, 14.802), 'right_hip': (21.346, 7.516, -15.399),
+        'right_knee': (46.826,), 'right_ankle': (17.903, 1.218), 'left_hip': (7.664, -0.797, -8.1),
+        'left_knee': (14.319,), 'left_ankle': (6.84, -1.859),
     })
     human.KeyRoot(48.6, (2.075, 72.487, 58.988), (33.566, 0.0, 0.0))
     human.KeyJoints(48.6, {
+        'spine_lumbar': (0.721, -0.485, 0.318), 'spine_thoracic': (-0.623, -0.271, 0.291),
+        'right_shoulder': (-3.536, 4.74, 19.389), 'right_elbow': (96.913, 24.897),
+        'right_wrist': (-12.363, -12.529), 'left_shoulder': (-3.196, -0.464, 9.317),
+        'left_elbow': (92.993, 18.169), 'left_wrist': (-11.972, 14.384),
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.695, -2.088, -2.153), 'left_knee': (14.536,),
         'left_ankle': (6.788, -2.356),
     })
     human.KeyRoot(48.7, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
     human.KeyJoints(48.7, {
+        'spine_lumbar': (0.122, -0.082, 0.054), 'spine_thoracic': (-0.105, -0.046, 0.049),
+        'right_shoulder': (-4.593, 4.095, 20.031), 'right_elbow': (95.854, 24.897),
+        'right_wrist': (-12.321, -13.549), 'left_shoulder': (-5.233, -0.018, 9.166),
+        'left_elbow': (92.321, 18.169), 'left_wrist': (-12.172, 14.073),
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
     human.KeyRoot(48.8, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
-        'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'right_shoulder': (-4.799, 3.963, 20.173), 'right_elbow': (95.665, 24.897),
+        'right_wrist': (-12.355, -13.941), 'left_shoulder': (-5.644, 0.02, 9.119),
+        'left_elbow': (92.17, 18.169), 'right_hip': (13.202, -4.131, 20.257),
+        'right_ankle': (14.467, 0.456), 'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,),
+        'left_ankle': (8.903, -1.595),
     })
     human.KeyRoot(48.9, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.995, -3.043, 20.193), 'right_knee': (14.761,),
+        'neck': (0.0, 0.0, 0.0), 'left_wrist': (-12.25, 13.987),
+        'right_hip': (5.995, -3.043, 20.193), 'right_knee': (14.761,),
         'right_ankle': (8.085, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
@@ -2559,80 +2606,128 @@ def remove_access_panel():
     })
     human.KeyRoot(51.6, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
     human.KeyJoints(51.6, {
+        'spine_lumbar': (0.001, -0.001, 0.0), 'spine_thoracic': (-0.001, 0.0, 0.0),
+        'right_shoulder': (-4.797, 3.964, 20.171), 'right_elbow': (95.665, 24.897),
+        'right_wrist': (-12.355, -13.942), 'left_shoulder': (-5.639, 0.018, 9.119),
+        'left_elbow': (92.166, 18.169), 'left_wrist': (-12.249, 13.986),
         'right_hip': (20.183, -0.663, 0.369), 'right_knee': (25.448,),
         'right_ankle': (5.261, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
     human.KeyRoot(51.7, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
     human.KeyJoints(51.7, {
+        'spine_lumbar': (0.153, -0.103, 0.068), 'spine_thoracic': (-0.132, -0.058, 0.062),
+        'right_shoulder': (-4.54, 4.129, 19.994), 'right_elbow': (95.902, 24.897),
+        'right_wrist': (-12.312, -13.45), 'left_shoulder': (-5.128, -0.028, 9.179),
+        'left_elbow': (92.359, 18.169), 'left_wrist': (-12.152, 14.095),
         'right_hip': (15.152, -1.863, 2.809), 'right_knee': (20.324,),
         'right_ankle': (5.097, -1.062), 'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,),
         'left_ankle': (9.815, 0.64),
     })
     human.KeyRoot(51.8, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
     human.KeyJoints(51.8, {
-        'right_hip': (11.701, -2.92, 6.095), 'right_knee': (18.597,), 'right_ankle': (6.58, -1.609),
-        'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,), 'left_ankle': (18.697, 1.419),
+        'spine_lumbar': (0.81, -0.545, 0.358), 'spine_thoracic': (-0.699, -0.305, 0.327),
+        'right_shoulder': (-3.374, 4.838, 19.305), 'right_elbow': (97.09, 24.897),
+        'right_wrist': (-12.398, -12.521), 'left_shoulder': (-2.922, -0.557, 9.325),
+        'left_elbow': (93.133, 18.169), 'right_hip': (11.701, -2.92, 6.095),
+        'right_knee': (18.597,), 'right_ankle': (6.58, -1.609), 'left_hip': (25.054, 1.455, 0.084),
+        'left_knee': (61.198,), 'left_ankle': (18.697, 1.419),
     })
     human.KeyRoot(51.9, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
     human.KeyJoints(51.9, {
+        'spine_lumbar': (2.135, -1.437, 0.943), 'spine_thoracic': (-1.844, -0.804, 0.863),
+        'right_shoulder': (-0.883, 6.427, 17.875), 'right_elbow': (99.601, 24.897),
+        'right_wrist': (-12.943, -12.257), 'left_shoulder': (1.654, -2.223, 9.643),
+        'left_elbow': (94.367, 18.169), 'left_wrist': (-11.859, 14.825),
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
     human.KeyRoot(52.0, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
     human.KeyJoints(52.0, {
+        'spine_lumbar': (4.102, -2.761, 1.812), 'spine_thoracic': (-3.542, -1.544, 1.658),
+        'right_shoulder': (3.376, 8.943, 15.223), 'right_elbow': (101.987, 24.897),
+        'right_wrist': (-13.484, -11.227), 'left_shoulder': (10.244, -4.757, 10.35),
+        'left_elbow': (93.57, 18.169), 'left_wrist': (-11.087, 14.619),
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
     human.KeyRoot(52.1, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
     human.KeyJoints(52.1, {
+        'spine_lumbar': (6.543, -4.403, 2.89), 'spine_thoracic': (-5.65, -2.463, 2.645),
+        'right_shoulder': (8.912, 12.903, 11.168), 'right_elbow': (103.891, 24.897),
+        'right_wrist': (-14.358, -11.038), 'left_shoulder': (21.417, -8.833, 11.604),
+        'left_elbow': (90.188, 18.169), 'left_wrist': (-9.851, 13.515),
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
     human.KeyRoot(52.2, (130.52, 71.171, 22.549), (90.0, 0.0, 0.0))
     human.KeyJoints(52.2, {
+        'right_shoulder': (15.098, 18.147, 6.069), 'right_elbow': (104.097, 24.897),
+        'right_wrist': (-15.311, -11.775), 'left_shoulder': (34.406, -13.769, 12.94),
+        'left_elbow': (82.628, 18.169), 'left_wrist': (-8.033, 11.152),
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.46, 2.118, 0.707), 'left_knee': (20.057,),
         'left_ankle': (1.61, 2.233),
     })
     human.KeyRoot(52.3, (130.146, 71.419, 20.923), (90.0, 0.0, 0.0))
     human.KeyJoints(52.3, {
+        'spine_lumbar': (11.782, -7.928, 5.203), 'spine_thoracic': (-10.173, -4.436, 4.763),
+        'right_shoulder': (21.111, 23.674, 0.583), 'right_elbow': (102.042, 24.897),
+        'right_wrist': (-16.019, -12.798), 'left_shoulder': (48.011, -18.54, 13.948),
+        'left_elbow': (71.37, 18.169), 'left_wrist': (-5.718, 7.481),
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.437, 0.768, 0.242), 'left_knee': (17.305,),
         'left_ankle': (-0.13, 0.805),
     })
     human.KeyRoot(52.4, (129.751, 71.675, 19.945), (90.0, 0.0, 0.0))
     human.KeyJoints(52.4, {
-        'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
-        'right_ankle': (19.401, 4.392), 'left_hip': (15.849, -0.046, -0.013),
-        'left_knee': (13.327,), 'left_ankle': (-2.522, -0.048),
+        'spine_lumbar': (14.003, -9.423, 6.184), 'spine_thoracic': (-12.09, -5.272, 5.661),
+        'right_shoulder': (26.401, 28.539, -4.255), 'right_wrist': (-16.33, -13.808),
+        'left_shoulder': (61.248, -22.596, 14.45), 'left_elbow': (57.818, 18.169),
+        'left_wrist': (-3.212, 2.946), 'right_hip': (13.739, 1.169, 12.585),
+        'right_knee': (53.955,), 'right_ankle': (19.401, 4.392),
+        'left_hip': (15.849, -0.046, -0.013), 'left_knee': (13.327,),
+        'left_ankle': (-2.522, -0.048),
     })
     human.KeyRoot(52.5, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
     human.KeyJoints(52.5, {
-        'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
-        'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
+        'spine_lumbar': (15.649, -10.531, 6.911), 'spine_thoracic': (-13.511, -5.891, 6.326),
+        'right_shoulder': (30.556, 32.229, -7.539), 'right_elbow': (94.575, 24.897),
+        'left_shoulder': (73.742, -25.782, 14.545), 'left_elbow': (42.799, 18.169),
+        'left_wrist': (-1.089, -1.142), 'right_hip': (20.782, 0.932, 5.608),
+        'right_knee': (44.214,), 'right_ankle': (19.341, 2.9), 'left_hip': (14.336, -0.116, -0.03),
+        'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
     human.KeyRoot(52.6, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
     human.KeyJoints(52.6, {
+        'spine_lumbar': (16.618, -11.183, 7.338), 'spine_thoracic': (-14.348, -6.256, 6.718),
+        'right_shoulder': (33.234, 34.365, -9.28), 'right_elbow': (91.899, 24.897),
+        'right_wrist': (-16.456, -16.92), 'left_shoulder': (83.903, -27.978, 14.567),
+        'left_elbow': (29.207, 18.169), 'left_wrist': (0.298, -3.967),
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
     human.KeyRoot(52.7, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
     human.KeyJoints(52.7, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.162, 0.015, 0.002),
-        'right_knee': (15.741,), 'right_ankle': (6.58, 0.015), 'left_hip': (9.162, -0.015, -0.002),
-        'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
+        'spine_lumbar': (16.977, -11.424, 7.497), 'spine_thoracic': (-14.658, -6.391, 6.863),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (34.326, 35.164, -9.822),
+        'right_elbow': (90.851, 24.897), 'right_wrist': (-16.56, -18.273),
+        'left_shoulder': (89.401, -29.154, 14.63), 'left_elbow': (21.282, 18.169),
+        'left_wrist': (0.895, -5.484), 'right_hip': (9.162, 0.015, 0.002), 'right_knee': (15.741,),
+        'right_ankle': (6.58, 0.015), 'left_hip': (9.162, -0.015, -0.002), 'left_knee': (15.741,),
+        'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.769006, duration=0.32772)
     human.KeyRoot(52.8, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(52.8, {
-        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (2.865, 0.0, 0.0),
-        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
-        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(52.9, {'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955)})
     human.KeyJoints(53.0, {

@@ -181,3 +181,35 @@ def test_a_kneeling_reach_beside_a_resting_hand_turns_the_shoulder_smoothly() ->
     ir, _ = compile_on(ROOT / "tests" / "data" / "balance" / "kneel_bowl.mtask", ("female", 1))
     step, where = _largest_step(ir)
     assert step <= 12.0, f"{step:.1f} deg, {where}"
+
+
+def test_an_approach_is_held_to_its_path_only_over_its_contact() -> None:
+    """``contacting``: the frames ``arms_in_time`` keeps whole on an approach are its TO's.
+    Kept whole from the TA's start, the corrected trunk and the re-solved arm turned the CAD
+    fuel filter's right elbow 12.7 deg in an output frame at the reach's peak (female P50)."""
+    path = ROOT / "examples" / "replace_fuel_filter_cad.mtask"
+    ir = compile_on(path, ("female", 50), until="hold")[0]
+    from mtlc.passes.balance import approach_windows, contacting, pin_windows
+
+    approaches = approach_windows(ir, pin_windows(ir))
+    narrowed = contacting(ir, approaches)
+    tos = {s.end: s.start for s in ir.segments if s.kind == "TO"}
+    found = 0
+    for hand, (lows, highs) in approaches.items():
+        lo2, hi2 = narrowed[hand]
+        assert np.array_equal(hi2, highs)
+        for lo, hi, start in zip(lows, highs, lo2, strict=True):
+            to_start = min((a for e, a in tos.items() if abs(e - hi) < 1e-6), default=None)
+            assert to_start is not None and abs(start - max(lo, to_start - 1e-9)) < 1e-9
+            found += start > lo
+    assert found  # some approach has a TA before its TO
+
+
+def test_the_cad_fuel_filters_reach_turns_no_joint_over_12_deg_a_frame() -> None:
+    path = ROOT / "examples" / "replace_fuel_filter_cad.mtask"
+    ir = compile_on(path, ("female", 50))[0]
+    frames = ir.frames
+    (ta,) = [s for s in ir.on_track("r_arm") if s.kind == "TA" and s.start < 11.9 < s.end]
+    rows = np.flatnonzero((frames.time >= ta.start) & (frames.time <= ta.end))
+    steps = np.degrees(np.abs(np.diff(frames.q[rows[0] - 1 : rows[-1] + 2], axis=0)))
+    assert steps.max() <= 12.0

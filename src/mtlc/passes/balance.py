@@ -112,6 +112,9 @@ SOLVE_EVERY = 1 / 20
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
 FADE_JOINT_SPEED = math.radians(120.0)
+# rad/s: an approach's arm kept on its planned path faster than this (issue 19's limit) yields
+# over its TA (``too_fast``): kept there up to it, a yield costs the reach its smoothness
+PERSON_JOINT_SPEED = math.radians(360.0)
 CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
@@ -214,6 +217,44 @@ def approach_windows(
                 lo.append(seg.start - 1e-9)
                 hi.append(to[0].end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
+    return out
+
+
+def too_fast(
+    skel: Skeleton, q_before: FloatArray, q_after: FloatArray, t: FloatArray,
+    approaches: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:  # fmt: skip
+    """The ``approaches`` (per hand, ``lo <= t < hi``) over which an arm dof of ``q_after``
+    turns faster than ``PERSON_JOINT_SPEED`` where ``q_before`` did not, over two frames (an
+    output frame's step at 30 fps, whichever frames the sample pass takes)."""
+    out = {}
+    for hand, (lows, highs) in approaches.items():
+        cols = arm_dofs(skel, hand)
+        step = np.abs(q_after[2:, cols] - q_after[:-2, cols])
+        room = np.maximum(np.abs(q_before[2:, cols] - q_before[:-2, cols]),
+                          PERSON_JOINT_SPEED * (t[2:] - t[:-2])[:, None])  # fmt: skip
+        over = t[2:][(step > room + 1e-9).any(axis=1)]
+        keep = [((over >= lo) & (over < hi)).any() for lo, hi in zip(lows, highs, strict=True)]
+        out[hand] = (lows[keep], highs[keep])
+    return out
+
+
+def contacting(
+    ir: MotionIR, approaches: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``approaches`` (``approach_windows``) narrowed to their TO segments: the slow end of
+    the movement, where the hand must be on the path to its contact. Before it the arm's
+    correction may be turned in time like any other (``arms_in_time``): kept whole over the
+    TA, the corrected trunk and the re-solved arm turned an elbow 378 deg/s at the reach's
+    peak (the CAD fuel filter's right hand, female P50: 12.7 deg in an output frame)."""
+    out = {}
+    for hand, (lows, highs) in approaches.items():
+        ends = {round(s.end, 6): s.start for s in ir.on_track(HANDS[hand]) if s.kind == "TO"}
+        starts = [
+            max(lo, ends.get(round(hi + 1e-9, 6), lo) - 1e-9)
+            for lo, hi in zip(lows, highs, strict=True)
+        ]
+        out[hand] = (np.array(starts, dtype=float), highs)
     return out
 
 
@@ -1225,7 +1266,19 @@ def balance_frames(
         approach_arms(skel, frames, q_start, root_start, segs.approaches)
         moving = hand_pins(ir, t, segs.approaches)
         held_still = {hand: pins[hand] | moving[hand] for hand in pins}
-    frames.q[:] = arms_in_time(skel, q_start, frames.q, t, held_still)
+    timed = arms_in_time(skel, q_start, frames.q, t, held_still)
+    if approaching:
+        # an approach whose arm, kept on its planned path, turns faster than a person: its
+        # TA yields (``contacting``); the others stay on their paths (yielding, the kneeling
+        # reach of tests/data/reach/r03 male P1 went from LDLJ -7.6 to -8.1)
+        fast = too_fast(skel, q_start, timed, t, segs.approaches)
+        if any(lo.size for lo, _ in fast.values()):
+            narrowed = contacting(ir, fast)
+            yielding = hand_pins(ir, t, {h: fast[h] for h in fast})
+            kept = hand_pins(ir, t, narrowed)
+            held_still = {h: (held_still[h] & ~yielding[h]) | kept[h] for h in held_still}
+            timed = arms_in_time(skel, q_start, frames.q, t, held_still)
+    frames.q[:] = timed
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
 

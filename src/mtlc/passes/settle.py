@@ -33,7 +33,7 @@ from mtlc.passes.profile import minimum_jerk, smooth_path
 
 TRUNK = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 NEAR = math.radians(2.0)  # rad: a group of joints this close to its rest pose is left alone
-SPEED = math.radians(150.0)  # rad/s: a ramp's mean joint speed at most (peak 280 deg/s)
+SPEED = math.radians(150.0)  # rad/s: a ramp's peak joint speed at most (mean 80 deg/s)
 PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
 MIN_RAMP = 0.6  # s: the shortest ramp
 MIN_PATH = 0.01  # m: a reach whose effector moves less is not re-timed (a turn in place)

@@ -8,7 +8,7 @@ double to the next task: a 3 s look at a gauge at head height was made with the 
 Here, after the keyframe passes that bend the trunk and before the gaze (whose neck and head
 aim from the trunk they find), each gap between the segments that key the trunk (lumbar and
 thorax) that follows a reach gets a ``rest`` segment on the ``spine`` track: the trunk goes to
-its rest pose on a minimum-jerk ramp (``settle.ramp_length``: at least 0.6 s, 150 deg/s mean at
+its rest pose on a minimum-jerk ramp (``settle.ramp_length``: at least 0.6 s, 150 deg/s peak at
 most) from the end of the reach, is held there, and, when a reach follows (solved from the
 trunk as the last one left it), comes back to that pose before it starts; a posture that
 follows starts from upright (``state.start_posture_from``). A hand still on a site (``hold``)

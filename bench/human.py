@@ -53,6 +53,7 @@ MIN_REACH_FRAMES = 4
 MIN_REACH_PATH = 0.01  # m
 PEAK_PROMINENCE = 0.10  # of the reach's peak speed
 SWING_HEIGHT = 5e-3  # m: a foot whose lowest point is this far above the floor swings
+CARRY_EDGE = 0.6  # s: a carried walk's trunk is judged this far in from its ends (the ramps)
 
 
 def _angle_between(qa: Array, qb: Array) -> Array:
@@ -348,9 +349,55 @@ def gait(doc: dict[str, Any], body: Any) -> dict[str, Any]:
     }
 
 
+def _closed_at(doc: dict[str, Any], hand: str, t: float) -> bool:
+    """Whether the hand's last grip event before ``t`` closed it (the IR's grip segments)."""
+    grips = sorted(
+        (s for s in doc["segments"] if s["track"] == hand and s["kind"] == "grip"),
+        key=lambda s: s["t_start"],
+    )
+    before = [g for g in grips if g["t_start"] < t - 1e-9]
+    return bool(before) and (before[-1].get("goal") or {}).get("params", {}).get("state") != "open"
+
+
+def carried_trunk(doc: dict[str, Any], time: Array) -> dict[str, Any]:
+    """The trunk's lean (lumbar plus thorax flexion, degrees, from the frames' angles) in the
+    middle of each walk that starts with a hand closed on a part (``CARRY_EDGE`` in from each
+    end, its median): people walk upright with a load (issue 19: "a carried load is held near
+    the body while walking"). The output's largest, and where."""
+    frames = doc["frames"]
+    names = frames["dof_names"]
+    if "lumbar_flex" not in names or "thorax_flex" not in names:
+        return {"carried_walks": 0, "carried_trunk_deg": None, "carried_trunk_at": None}
+    q = np.asarray(frames["q"], float)
+    lean = np.degrees(q[:, names.index("lumbar_flex")] + q[:, names.index("thorax_flex")])
+    worst: tuple[float, str] | None = None
+    count = 0
+    for s in doc["segments"]:
+        if s["kind"] != "locomotion":
+            continue
+        a, b = float(s["t_start"]), float(s["t_end"])
+        middle = (time >= a + CARRY_EDGE) & (time <= b - CARRY_EDGE)
+        if not middle.any() or not any(_closed_at(doc, h, a + 1e-6) for h in ("r_hand", "l_hand")):
+            continue
+        count += 1
+        value = float(np.median(np.abs(lean[middle])))
+        if worst is None or value > worst[0]:
+            worst = (value, f"walk @{a:.2f}-{b:.2f}s")
+    return {
+        "carried_walks": count,
+        "carried_trunk_deg": worst[0] if worst else None,
+        "carried_trunk_at": worst[1] if worst else None,
+    }
+
+
 def measure(doc: dict[str, Any], body: Any) -> dict[str, Any]:
     """Every issue-19 figure of one compile."""
-    return {**joint_steps(doc, body.time), **reaches(doc, body), **gait(doc, body)}
+    return {
+        **joint_steps(doc, body.time),
+        **reaches(doc, body),
+        **gait(doc, body),
+        **carried_trunk(doc, body.time),
+    }
 
 
 # ------------------------------------------------------------------ the table
@@ -422,6 +469,7 @@ def table(tasks: list[dict[str, Any]]) -> list[str]:
     row("swing min s", "swing_min", ">= 0.35", lo=0.35, worse_below=True)
     row("pelvis excursion cm", "pelvis_cm", "<= 6", hi=6.0)
     row("ankle speed m/s", "ankle_ms", "<= 5", hi=5.0)
+    row("carried walk trunk deg", "carried_trunk_deg", "<= 10 (upright; no goal)", hi=10.0)
     return lines
 
 
@@ -429,4 +477,9 @@ WORST = (
     ("joint step (issue 19)", lambda t: t.get("step_max_deg") or 0.0, lambda t: t["step_max_dof"]),
     ("reach LDLJ", lambda t: -(t.get("ldlj_min") or 0.0), lambda t: t["reach_worst"]),
     ("cadence", lambda t: t.get("cadence_max") or 0.0, lambda t: t["walk_worst"]),
+    (
+        "carried walk trunk",
+        lambda t: t.get("carried_trunk_deg") or 0.0,
+        lambda t: t["carried_trunk_at"],
+    ),
 )

@@ -158,9 +158,11 @@ def carry_walk(
     meshes: CarriedMeshes | None = None, rigid: bool = True,
 ) -> bool:  # fmt: skip
     """Lead the arms to the carry pose and back over one walk's frames, in place, the trunk
-    upright while they are there (``upright``) where that passes, else as it was. Whether it
-    did (not: too short, already near, or no carry pose within ``TRIES`` that the arms reach
-    and keep clear of the body on the way)."""
+    upright while they are there (``trunk_offset``) where that passes, else as it was
+    (``meshes``: the CAD parts the hands hold; ``rigid``: one two-handed part, which the carry
+    pass holds rigid after this; else the hands must keep their distance). Whether it did
+    (not: too short, already near, or no carry pose within ``TRIES`` that the arms reach and
+    keep clear of the body on the way)."""
     t = frames.time
     rows = np.flatnonzero((t >= start - EPS) & (t <= end + EPS))
     if rows.size < 3:
@@ -361,8 +363,8 @@ def hands_on_their_path(
 ) -> FloatArray | None:  # fmt: skip
     """(len(rows), D) poses with both hands ``w`` of the way along straight lines from where
     they were at the walk's start (``hands``; ``borne``: where the trunk alone takes them,
-    ``_borne``) to ``targets``, both in the body's frame (the
-    walk's first frame's root, ``start_root``), solved from the joint blend ``w × delta``:
+    ``_borne``) to ``targets``, both in the body's frame (the walk's first frame's root,
+    ``start_root``), solved from the joint blend ``w × delta``:
     blended in joint angles alone, the hands went apart from 20 to 58 cm on the way down from
     overhead and the rigid part's re-solve then put one 64 mm into the trunk (avionics unit,
     female P99). Where that seed takes a frame onto another branch of the arm, the frames are

@@ -95,6 +95,7 @@ TRIES = 4  # carry poses tried, each RAISE higher and AWAY further out than the 
 RAISE = 0.05  # m
 AWAY = 0.03  # m
 NEAR = 0.08  # m: a part whose hands are this close to the carry pose already stays
+MESH_CHUNK = 40  # frames a carried CAD part is measured against the body at once
 HOLD_WIDTH = 1e-3  # m: two hands holding apart keep their distance this well (``_width_kept``)
 PATH_TOL = 0.03  # m: the hands on their way to the carry pose and back within this of their path
 SOLVE_TOL = 2e-3  # m: the carry pose's hands within this of their targets, or no carry pose
@@ -666,6 +667,7 @@ class CarriedMeshes:
         self.skel = ir.skeleton
         self.ir = ir
         self.parts: list[tuple[MeshIndex, str, list[str], FloatArray]] = []
+        self.was: FloatArray | None = None  # the depth of the frames as they were (NaN: not yet)
         models = [m for m in ir.geometry if len(m.faces)]
         grasped = grasped_parts(ir, models) if models else []
         if not grasped:
@@ -711,12 +713,24 @@ class CarriedMeshes:
         return out
 
     def kept_out(self, frames: Frames, rows: np.ndarray, moved: FloatArray) -> bool:
-        """Whether ``moved`` takes the body no deeper into the parts than it was (or in)."""
+        """Whether ``moved`` takes the body no deeper into the parts than it was (or in). The
+        frames as they were are measured once a walk (``self.was``): measured again for each
+        pose tried, they were half of the pass's time on the CAD access panel."""
         if not self.parts:
             return True
-        before = self.deepest(frames, rows, frames.q[rows])
-        after = self.deepest(frames, rows, moved)
-        return bool((after <= np.maximum(before, 0.0)).all())
+        if self.was is None:
+            self.was = np.full(len(frames.time), np.nan)
+        new = rows[np.isnan(self.was[rows])]
+        if new.size:
+            self.was[new] = self.deepest(frames, new, frames.q[new])
+        # the middle first (the carry pose, where the part is nearest the body), in chunks: a
+        # pose that fails is known after a few of them
+        order = np.argsort(np.abs(np.arange(len(rows)) - 0.5 * (len(rows) - 1)), kind="stable")
+        for chunk in np.array_split(order, max(1, len(rows) // MESH_CHUNK)):
+            after = self.deepest(frames, rows[chunk], moved[chunk])
+            if (after > np.maximum(self.was[rows[chunk]], 0.0)).any():
+                return False
+        return True
 
 
 def carried_alone(ir: MotionIR, start: float, end: float) -> list[str]:

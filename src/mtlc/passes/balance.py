@@ -249,11 +249,11 @@ def contacting(
     peak (the CAD fuel filter's right hand, female P50: 12.7 deg in an output frame)."""
     out = {}
     for hand, (lows, highs) in approaches.items():
-        ends = {round(s.end, 6): s.start for s in ir.on_track(HANDS[hand]) if s.kind == "TO"}
-        starts = [
-            max(lo, ends.get(round(hi + 1e-9, 6), lo) - 1e-9)
-            for lo, hi in zip(lows, highs, strict=True)
-        ]
+        tos = [s for s in ir.on_track(HANDS[hand]) if s.kind == "TO"]
+        starts = []
+        for lo, hi in zip(lows, highs, strict=True):  # the TO that ends the approach
+            to = next((s for s in tos if abs(s.end - 1e-9 - hi) < 1e-6), None)
+            starts.append(lo if to is None else max(lo, to.start - 1e-9))
         out[hand] = (np.array(starts, dtype=float), highs)
     return out
 
@@ -1274,7 +1274,7 @@ def balance_frames(
         fast = too_fast(skel, q_start, timed, t, segs.approaches)
         if any(lo.size for lo, _ in fast.values()):
             narrowed = contacting(ir, fast)
-            yielding = hand_pins(ir, t, {h: fast[h] for h in fast})
+            yielding = hand_pins(ir, t, fast)
             kept = hand_pins(ir, t, narrowed)
             held_still = {h: (held_still[h] & ~yielding[h]) | kept[h] for h in held_still}
             timed = arms_in_time(skel, q_start, frames.q, t, held_still)

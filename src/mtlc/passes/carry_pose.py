@@ -8,7 +8,7 @@ near waist height: the load's moment about the lower back and the shoulders' is 
 "Revised NIOSH equation for the design and evaluation of manual lifting tasks", Ergonomics
 36(7):749-776: the load's horizontal distance from the ankles' mid-point is its largest factor).
 A walk also kept the trunk the lift left: 46 of 140 carried walks on bench/procedures and the
-examples went bent 20-76 deg from start to end (a wheel carried 4.5 s at 76 deg).
+examples went bent more than 10 deg from start to end (11-76 deg) (a wheel carried 4.5 s at 76 deg).
 
 Here, on the dense frames of each walk during which both hands hold a part (one two-handed
 part, ``carry.carries``, or a part each: a hatch held by its two edges is not recognised as
@@ -58,18 +58,17 @@ from mtlc.body.ik import Goal, solve_ta
 from mtlc.body.ik.clearance import penetrations
 from mtlc.body.kinematics import quat_to_matrix
 from mtlc.body.skeleton import Skeleton
-from mtlc.geometry.clearance import scene_pieces
+from mtlc.geometry.clearance import _into_part, scene_pieces
 from mtlc.geometry.distance import MeshIndex
 from mtlc.geometry.held import _hand_frames as hand_frames
 from mtlc.geometry.held import _placements
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.carry import Carry, carries
 from mtlc.passes.context import PassContext
-from mtlc.passes.detour import HORIZON, WORDS, grasped_parts
+from mtlc.passes.detour import WORDS, capsule_depths, grasped_parts
 from mtlc.passes.hold import ARM_HAND, _arm_dofs, carried_postures, closed_at, on_site
 from mtlc.passes.profile import minimum_jerk
-from mtlc.passes.settle import NEAR as TRUNK_NEAR
-from mtlc.passes.settle import TRUNK, keep_until_keyed
+from mtlc.passes.settle import keep_until_keyed, trunk_offset
 
 HANDS = ("r_hand", "l_hand")
 SOLES = ("r_heel", "r_toe", "l_heel", "l_toe")
@@ -193,17 +192,6 @@ def carry_walk(
     return False
 
 
-def trunk_offset(skel: Skeleton, q: FloatArray) -> tuple[list[int], FloatArray] | None:
-    """(the trunk's dofs, their way from ``q`` to the rest pose), or None where the trunk is
-    within ``settle.NEAR`` of it already. People walk with a load upright: a walk kept the lean
-    of the lift before it (a wheel carried 4.5 s with the trunk bent 45-76 deg, 14 manikins)."""
-    dofs = [skel.dof_index(n) for n in TRUNK]
-    offset = np.asarray(skel.q_comfort, dtype=float)[dofs] - q[dofs]
-    if float(np.abs(offset).max(initial=0.0)) <= TRUNK_NEAR:
-        return None
-    return dofs, offset
-
-
 def _carried(
     skel: Skeleton, frames: Frames, rows: np.ndarray, walk: tuple[float, float],
     start_root: tuple[FloatArray, FloatArray], hands: FloatArray, targets: FloatArray,
@@ -242,10 +230,8 @@ def _carried(
                 break
             speed = _peak_speed(frames, on, moved, dofs)
             if speed <= PATH_SPEED:
-                if (
-                    _kept_clear(skel, frames, on, w, moved, SIDES)
-                    and (meshes is None or meshes.kept_out(frames, on, moved))
-                    and (rigid or _width_kept(skel, frames, on, moved, hands))
+                if _kept_clear(skel, frames, on, w, moved, meshes) and (
+                    rigid or _width_kept(skel, frames, on, moved, hands)
                 ):
                     return on, moved
                 break
@@ -297,24 +283,27 @@ def _ramped(
 
 def _kept_clear(
     skel: Skeleton, frames: Frames, on: np.ndarray, w: FloatArray, moved: FloatArray,
-    sides: tuple[str, ...],
+    meshes: CarriedMeshes | None,
 ) -> bool:  # fmt: skip
-    """Whether the poses ``moved`` of the rows ``on`` keep the arms of ``sides`` out of the
-    body's clearance on the way (``w`` < 1) and no more than ``KEEP_OUT`` into it in the carry
-    pose, or no deeper than they were."""
+    """Whether the poses ``moved`` of the rows ``on`` keep both arms out of the body's
+    clearance on the way (``w`` < 1) and no more than ``KEEP_OUT`` into it in the carry pose,
+    or no deeper than they were; and the body out of the CAD parts the hands hold
+    (``meshes``), or no deeper."""
     root_on = (frames.root_position[on], frames.root_rotation[on])
-    before = penetrations(skel, frames.q[on], root_on, sides)
-    after = penetrations(skel, moved, root_on, sides)
+    before = penetrations(skel, frames.q[on], root_on, SIDES)
+    after = penetrations(skel, moved, root_on, SIDES)
     # on the way an arm stays out of the clearance (the clearance pass, fighting the held
     # hands' rigid part there, left forearms 2-7 mm in the trunk: the avionics unit coming
     # down from overhead); held in the carry pose, ``KEEP_OUT`` deep at most
     allowed = np.where(w < 1.0, 0.0, -KEEP_OUT)
     # a frame whose arm was inside already (the overhead hatch's right forearm, 99 mm as the
     # walk starts; the clearance pass takes it out) may go ``DEEPER`` more on the way out
-    return not any(
+    if any(
         (after[s] > np.maximum(before[s] + np.where(before[s] > 0.0, DEEPER, 0.0), allowed)).any()
-        for s in sides
-    )
+        for s in SIDES
+    ):
+        return False
+    return meshes is None or meshes.kept_out(frames, on, moved)
 
 
 def carry_walk_alone(
@@ -349,9 +338,7 @@ def carry_walk_alone(
         if on is None:
             continue
         moved = skel.clip(frames.q[on] + w[:, None] * delta[None])
-        if _kept_clear(skel, frames, on, w, moved, SIDES) and (
-            meshes is None or meshes.kept_out(frames, on, moved)
-        ):
+        if _kept_clear(skel, frames, on, w, moved, meshes):
             frames.q[on] = moved
             return True
     return False
@@ -666,7 +653,7 @@ class CarriedMeshes:
     def __init__(self, ir: MotionIR, walk: tuple[float, float]) -> None:
         self.skel = ir.skeleton
         self.ir = ir
-        self.parts: list[tuple[MeshIndex, str, list[str], FloatArray]] = []
+        self.parts: list[tuple[MeshIndex, str, FloatArray]] = []  # index, carrier, anchor
         self.was: FloatArray | None = None  # the depth of the frames as they were (NaN: not yet)
         models = [m for m in ir.geometry if len(m.faces)]
         grasped = grasped_parts(ir, models) if models else []
@@ -679,6 +666,7 @@ class CarriedMeshes:
                        frames.root_rotation[: first + 1], with_axes=False)  # fmt: skip
         hands = {side: hand_frames(ir, pose, side) for side in SIDES}
         _, _, pieces = scene_pieces(models, grasped)
+        holding: set[str] = set()  # the hands that hold them: not measured against them
         for part, index in pieces:
             placement, kept = _placements(t[: first + 1], hands, part.holds)
             over = [h for h in kept if h.start <= walk[0] + EPS and h.end >= walk[1] - EPS]
@@ -686,9 +674,9 @@ class CarriedMeshes:
                 continue
             carrier = min(over, key=lambda h: (h.start, SIDES.index(h.side))).side
             anchor = np.linalg.inv(hands[carrier][first]) @ placement[first]
-            holding = sorted({h.side for h in over})
-            self.parts.append((index, carrier, holding, anchor))
-        names = {f"{WORDS[s]} hand" for _, _, holding, _ in self.parts for s in holding}
+            holding |= {h.side for h in over}
+            self.parts.append((index, carrier, anchor))
+        names = {f"{WORDS[s]} hand" for s in holding}
         self.caps = tuple(c for c in collision_capsules(self.skel) if c.name not in names)
 
     def deepest(self, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
@@ -700,16 +688,10 @@ class CarriedMeshes:
         pose = forward(self.skel, q, frames.root_position[rows], frames.root_rotation[rows],
                        with_axes=False)  # fmt: skip
         a, b, radii = capsule_segments(self.skel, pose, self.caps)
-        for index, carrier, _, anchor in self.parts:
+        for index, carrier, anchor in self.parts:
             place = hand_frames(self.ir, pose, carrier) @ anchor
-            rot, move = place[:, :3, :3], place[:, None, :3, 3]
-            la = np.einsum("nji,ncj->nci", rot, a - move).reshape(-1, 3)
-            lb = np.einsum("nji,ncj->nci", rot, b - move).reshape(-1, 3)
-            d = index.segment_distance(la, lb, HORIZON)
-            touching = np.flatnonzero(d <= 0.0)
-            if touching.size:
-                d[touching] = -index.through_depth(la[touching], lb[touching])
-            out = np.maximum(out, (radii[None, :] - d.reshape(len(rows), -1)).max(axis=1))
+            depth = capsule_depths(index, _into_part(a, place), _into_part(b, place), radii)
+            out = np.maximum(out, depth.max(axis=1))
         return out
 
     def kept_out(self, frames: Frames, rows: np.ndarray, moved: FloatArray) -> bool:

@@ -130,7 +130,7 @@ class Obstacles:
         times ``t`` (K,) into any model (m, positive inside)."""
         out = np.full(a.shape[:2], -np.inf)
         for index in self.fixed:
-            out = np.maximum(out, _depth(index, a, b, radii))
+            out = np.maximum(out, capsule_depths(index, a, b, radii))
         for part in self.parts:
             k = np.clip(np.searchsorted(part.times, t + EPS) - 1, 0, len(part.times) - 1)
             rows = np.flatnonzero(~part.held[k])
@@ -140,7 +140,7 @@ class Obstacles:
             rot, move = place[:, :3, :3], place[:, None, :3, 3]
             la = np.einsum("nji,ncj->nci", rot, a[rows] - move)
             lb = np.einsum("nji,ncj->nci", rot, b[rows] - move)
-            out[rows] = np.maximum(out[rows], _depth(part.index, la, lb, radii))
+            out[rows] = np.maximum(out[rows], capsule_depths(part.index, la, lb, radii))
         return out.max(axis=1)
 
 
@@ -156,7 +156,7 @@ class PlacedPart:
     held: np.ndarray  # (G,) bool
 
 
-def _depth(index: MeshIndex, a: FloatArray, b: FloatArray, radii: FloatArray) -> FloatArray:
+def capsule_depths(index: MeshIndex, a: FloatArray, b: FloatArray, radii: FloatArray) -> FloatArray:
     """(K, C) each capsule's depth into one mesh: its radius less its axis's distance, and
     where the axis crosses a surface how far its nearer end sticks out (verify's rule)."""
     flat_a, flat_b = a.reshape(-1, 3), b.reshape(-1, 3)

@@ -206,10 +206,9 @@ def settle_walk(
         return
     rest = np.asarray(skel.q_comfort, dtype=float)
     arms = [n for hand in ARM_HAND.values() for n in _names(skel, _arm_dofs(skel, hand))]
-    spine = [skel.dof_index(n) for n in TRUNK]
-    offset = rest[spine] - frames.q[i, spine]
-    if trunk and float(np.abs(offset).max()) > NEAR:
-        _settle_trunk(skel, ir, frames, (start, end), spine, offset, [*TRUNK, *arms])
+    way = trunk_offset(skel, frames.q[i]) if trunk else None
+    if way is not None:
+        _settle_trunk(skel, ir, frames, (start, end), *way, [*TRUNK, *arms])
     for track in tracks:  # a free arm hangs until its next segment, let go of over it
         dofs = _arm_dofs(skel, ARM_HAND[track])
         offset = rest[dofs] - frames.q[i, dofs]
@@ -223,6 +222,16 @@ def settle_walk(
         keep_until_keyed(skel, ir, frames, dofs, offset, rise)
         if _deeper(skel, frames, kept, before, track[0]):
             frames.q[kept] = before
+
+
+def trunk_offset(skel: Skeleton, q: FloatArray) -> tuple[list[int], FloatArray] | None:
+    """(the trunk's dofs, their way from ``q`` to the rest pose), or None where the trunk is
+    within ``NEAR`` of it already: what a walk straightens (here, and in carry_pose)."""
+    dofs = [skel.dof_index(n) for n in TRUNK]
+    offset = np.asarray(skel.q_comfort, dtype=float)[dofs] - q[dofs]
+    if float(np.abs(offset).max(initial=0.0)) <= NEAR:
+        return None
+    return dofs, offset
 
 
 def _deeper(skel: Skeleton, frames: Frames, kept: slice, before: FloatArray, side: str) -> bool:

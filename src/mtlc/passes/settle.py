@@ -40,6 +40,7 @@ MIN_PATH = 0.01  # m: a reach whose effector moves less is not re-timed (a turn 
 PATH_POINTS = 121  # a re-timed reach's path, resampled at even steps of arc length
 SMOOTH_SIGMA = 0.1  # of the path's arc length: pace's least smoothing
 MIN_FADE = 0.3  # s: the shortest fade of a correction over the segment that keys its joint
+DEEPER_TOL = 0.005  # m: how much deeper a let-down arm that was inside may go on a frame
 EPS = 1e-9
 
 
@@ -236,25 +237,40 @@ def trunk_offset(skel: Skeleton, q: FloatArray) -> tuple[list[int], FloatArray] 
 
 def _deeper(skel: Skeleton, frames: Frames, kept: slice, before: FloatArray, side: str) -> bool:
     """Whether the frames ``kept`` changed from ``before`` (the others did not change) take the
-    arm of ``side`` deeper into the body's clearance than it was (and into it): an arm let down
-    from where a place left it swept a forearm 103 mm through a thigh (vehicle_battery female
-    P95), and the clearance pass, pushing it out, moved the place before it off its site."""
+    arm of ``side`` deeper into the body's clearance than it was: an arm let down from where a
+    place left it swept a forearm 103 mm through a thigh (vehicle_battery female P95), and the
+    clearance pass, pushing it out, moved the place before it off its site.
+
+    An arm that was inside already (a hand put on a site inside the trunk, then a walk away) is
+    judged over the frames as a whole: let down, it went 3 mm deeper on 22 frames and came
+    clear on the other 2,600; kept, it stayed 100 mm in the trunk for the 20 m walk (and the
+    clearance pass solved every one of those frames). It is let down where no frame goes more
+    than ``DEEPER_TOL`` deeper than the deepest it was and the depth summed over the frames
+    shrinks."""
     changed = np.flatnonzero(np.abs(frames.q[kept] - before).max(axis=1) > 0.0)
     if changed.size == 0:
         return False
     rows = kept.start + changed
-    now = penetrations(skel, frames.q[rows], (frames.root_position[rows],
-                                               frames.root_rotation[rows]), (side,))[side]  # fmt: skip
+    root = (frames.root_position[rows], frames.root_rotation[rows])
+    now = penetrations(skel, frames.q[rows], root, (side,))[side]
     # only a frame with the arm inside can be deeper than before: the frames before measured
     # there alone (a frame's figure does not depend on the frames measured with it; an arm let
     # down over a long walk is clear of the body on nearly every frame)
     inside = np.flatnonzero(now > 0.0)
     if inside.size == 0:
         return False
-    rows, changed = rows[inside], changed[inside]
-    root = (frames.root_position[rows], frames.root_rotation[rows])
+    was_inside = penetrations(skel, before[changed[inside]], _rows(root, inside), (side,))[side]
+    if not (now[inside] > np.maximum(was_inside, 0.0)).any():
+        return False
     was = penetrations(skel, before[changed], root, (side,))[side]
-    return bool((now[inside] > np.maximum(was, 0.0)).any())
+    worst = float(np.max(was, initial=0.0))
+    if worst <= 0.0 or float(now.max()) > worst + DEEPER_TOL:
+        return True
+    return float(np.maximum(now, 0.0).sum()) >= float(np.maximum(was, 0.0).sum())
+
+
+def _rows(root: tuple[FloatArray, FloatArray], rows: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    return root[0][rows], root[1][rows]
 
 
 def _settle_trunk(

@@ -142,7 +142,11 @@ def test_the_low_latchs_shoulder_turns_no_faster_than_a_person(rack: tuple) -> N
     fa = resample(after.frames, 30.0)
     names = after.skeleton.dof_names
     j = names.index("l_shoulder_rot")
-    near = np.flatnonzero(np.abs(fa.time - 25.03) <= 0.5)  # the reach to the low latch
+    # the reach to the low latch, around its TA's end (25.03 s was asked for when the walk to
+    # the bench stood on the bench's footprint)
+    (latch,) = [s for s in after.segments if s.kind == "TA" and s.goal.site == "latch_low"
+                and s.goal.effector == "l_hand"]  # fmt: skip
+    near = np.flatnonzero(np.abs(fa.time - latch.end) <= 0.5)
     steps = np.degrees(np.abs(np.diff(fa.q[near, j])))
     assert steps.max() <= 12.0, f"{steps.max():.1f} deg in one output frame"
     # and the arm was corrected there: the case is still a case

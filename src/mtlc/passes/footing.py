@@ -1,7 +1,8 @@
 """Pass 3b: where a walk stops, the feet and legs stand clear of the equipment (issue 20).
 
-A walk goes to its site's ground point and arrives facing its work; the front end knows
-nothing of the scene's models, so a site in front of a bench (``bench_front``) put a 5th
+A walk goes to its site's ground point (in front of a raised site: ``semantics.stand``) and
+arrives facing its work; the front end knows nothing of the scene's models, so a site in front
+of a bench (``bench_front``) put a 5th
 percentile woman's toes 24 mm into the bench and her feet 56 mm in by the depth of their far
 ends (MT0515). Before the gait is made, each walk's end is checked: the standing legs (feet,
 shanks and thighs: ``mtlc.body.capsules``' collision capsules of the comfortable pose, turned

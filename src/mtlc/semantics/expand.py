@@ -22,6 +22,7 @@ from mtlc.semantics import types as T
 from mtlc.semantics import values as V
 from mtlc.semantics.check import TOOL_RANGES, check_manikin
 from mtlc.semantics.scopes import Scope, Symbol
+from mtlc.semantics.stand import stand_point
 from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
 from mtlc.syntax import ast
 
@@ -810,16 +811,19 @@ class Expander:
 
     def walk(self, stmt: ast.Walk, env: _Env, t: float, timing: Any) -> float:
         x, y, z = self.root
+        in_front: Site | None = None
         if stmt.mode == "to":
             site: Site = self.eval(stmt.target, env)
-            goal = (site.position[0], y, site.position[2])
+            goal, worked_at = stand_point(site.position, site.normal, self.root, y)
             name = site.name
+            in_front = site if worked_at else None
         else:
             displacement = self.eval(stmt.target, env)
             self.check(V.DISPLACEMENT, displacement, env, stmt.target)
             dx, _, dz = displacement
             goal, name = (x + dx, y, z + dz), None
-        facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
+        # a site stood in front of is faced, unless the walk names what to face
+        facing = self.eval(stmt.facing, env) if stmt.facing is not None else in_front
         distance = _dist(self.root, goal)
         d = self.duration(timing, _WALK, stmt, env, distance)
         params = {

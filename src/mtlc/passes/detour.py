@@ -68,12 +68,10 @@ from mtlc.geometry.held import (
 )
 from mtlc.geometry.held import _hand_frames as hand_frames
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
-from mtlc.ir.pchip import pchip
 from mtlc.passes.approach import groups
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import track
-from mtlc.passes.pace import JOINT_WEIGHT
-from mtlc.passes.profile import minimum_jerk, smooth_path
+from mtlc.passes.profile import JOINT_WEIGHT, bell_ldlj, minimum_jerk, smooth_path
 from mtlc.passes.state import TRUNK_DOFS, PoseState
 
 PART_FPS = 30.0  # a grasped part's placement is followed on this clock (frames a second)
@@ -421,7 +419,7 @@ def hand_length(skel: Skeleton, pose: Pose, sides: list[str]) -> float:
 def paced_ldlj(skel: Skeleton, q: FloatArray, pose: Pose, sides: list[str]) -> float:
     """The hands' log dimensionless jerk (docs/metrics.md's reach figure) along the sampled
     path ``q`` (K, D) with ``pose`` when ``pace`` times it: progress (the hands' arc length
-    plus ``pace.JOINT_WEIGHT`` times the joints' path) along one minimum-jerk bell. The
+    plus ``profile.JOINT_WEIGHT`` times the joints' path) along one minimum-jerk bell. The
     worse hand's; a detour must not turn a smooth reach into a rough one."""
     step = np.linalg.norm(np.diff(q, axis=0), axis=1) * JOINT_WEIGHT
     hands = [site_positions(skel, pose, f"{s}_hand") for s in sides]
@@ -431,18 +429,7 @@ def paced_ldlj(skel: Skeleton, q: FloatArray, pose: Pose, sides: list[str]) -> f
     if u[-1] <= 1e-9:
         return 0.0
     u = u / u[-1] + np.arange(len(u)) * 1e-9
-    tau = np.linspace(0.0, 1.0, LDLJ_POINTS)
-    dt = tau[1] - tau[0]
-    worst = np.inf
-    for p in hands:
-        path = pchip(u, p)(minimum_jerk(tau))
-        speed = np.linalg.norm(np.diff(path, axis=0), axis=1) / dt
-        top = float(speed.max())
-        if top <= 1e-9:
-            continue
-        jerk = float(np.sum(np.diff(path, n=3, axis=0) ** 2) / dt**5)
-        worst = min(worst, -float(np.log(max(jerk / top**2, 1e-300))))
-    return float(worst) if np.isfinite(worst) else 0.0
+    return bell_ldlj(hands, u, LDLJ_POINTS)
 
 
 def body_depth(skel: Skeleton, pose: Pose, sides: list[str]) -> float:

@@ -20,13 +20,15 @@ timing (their trunk is one). The TO's last stretch is the slow end of the bell.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import Pose, forward_part, part_site_positions, site_positions
+from mtlc.body import Pose, forward, forward_part, part_site_positions, site_positions
 from mtlc.body.capsules import limbs_of_sides, measured_points, self_intersection
+from mtlc.body.ik import Goal, solve_ta
 from mtlc.body.kinematics import bits_differ, forward_changed
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
@@ -44,15 +46,17 @@ from mtlc.passes.carry import (
     solve_smoothed,
 )
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.detour import MARGIN, ArmCapsules, Obstacles, obstacles_of
 from mtlc.passes.hold import _arm_dofs as arm_dofs
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
+from mtlc.passes.profile import JOINT_WEIGHT, bell_ldlj
 from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
 from mtlc.passes.profile import smooth_path as smooth_path  # re-exported
+from mtlc.passes.state import PoseState
 from mtlc.passes.timewarp import Stretch, TimeWarp
 from mtlc.passes.tool import is_stroke
 
-JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
 PATH_SAMPLES_PER_S = 480.0  # the old motion is measured this densely to find its arc length
 MIN_PATH_SAMPLES = 64
 # at most this many (8.5 s at 480 a second): a person's reach lasts a second or two, and a
@@ -82,6 +86,15 @@ END_BLEND = 0.25
 CLEAN_SIGMA = 4.0  # points of ``PATH_POINTS``: the carried path's last low-pass (``_cleaned``)
 CLEAN_SPARE = 5e-4  # m: how much further from the part's length the low-passed path may go
 REACH_TOL = 2e-3
+# a reach's path made again on a curve (``_curved``) where it scores under CURVE_FROM
+LDLJ_POINTS = 61  # the minimum-jerk clock's samples its LDLJ is measured on (``bell_ldlj``)
+CURVE_FROM = -7.0  # LDLJ: a path that scores this well is left as it is
+CURVE_MIN_PATH = 0.01  # m: a hand moving less than this is not made again
+CURVE_GAIN = 0.3  # LDLJ: the curve must score this much better to replace the path
+CURVE_END_SHARE = 0.15  # of the progress: the way the path arrives is measured over its end
+CURVE_HANDLES = (0.5, 0.33, 0.2)  # of the chord: the curve's last control point this far out
+CURVE_TOL = 1e-3  # m: every point of the curve solved this close
+CURVE_STEP = 0.1  # rad a joint may turn between two of the PATH_POINTS points (no branch jump)
 NEED_SAMPLES = 512  # the minimum-jerk clock sampled this densely to find the fastest joint
 
 
@@ -455,8 +468,9 @@ def _record_shortfall(ir: MotionIR, m: Movement, path: Frames) -> None:
 
 
 def reach_path(
-    ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
-) -> ReachPath | None:
+    ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = (),
+    models: ModelCheck | None = None,
+) -> ReachPath | None:  # fmt: skip
     """The movement's path as interpolation makes it, resampled at even progress and smoothed
     (None when nothing moves): by the widest of ``SMOOTH_SIGMAS`` that takes nothing deeper
     behind its site, below the ground or into the body than ``SMOOTH_SIGMA`` does (by
@@ -490,7 +504,130 @@ def reach_path(
             chosen, at = wider, at_wider
             break
     u2, _ = progress(ir, m, chosen, at)
+    curved = None if held else _curved(ir, m, chosen, at, u2, idx, allowed, models)
+    if curved is not None:
+        return curved
     return ReachPath(u2, chosen.q[:, idx])
+
+
+class ModelCheck:
+    """The scene's models as ``detour`` measures a reach against them (``detour.Obstacles``),
+    made when a curve first asks: a curve must not cut through what the path was bent round."""
+
+    def __init__(self, ir: MotionIR) -> None:
+        self.ir = ir
+        self._obstacles: Obstacles | None = None
+        self._made = False
+
+    def depth(self, m: Movement, path: Frames) -> float:
+        """How deep (m, positive inside) the movement's hands, forearms and held tools go into
+        the models along ``path``; -inf without models."""
+        if not self._made:
+            self._obstacles = obstacles_of(self.ir, PoseState(self.ir))
+            self._made = True
+        if self._obstacles is None:
+            return -np.inf
+        sides = sorted({e[0] for e in m.effectors})
+        arms = ArmCapsules(self.ir, sides, m.start, m.end)
+        pose = forward(self.ir.skeleton, path.q, path.root_position, path.root_rotation,
+                       with_axes=False)  # fmt: skip
+        return float(arms.depth(self._obstacles, pose, path.time).max(initial=-np.inf))
+
+
+def _curved(
+    ir: MotionIR, m: Movement, chosen: Frames, at: FloatArray, u: FloatArray, idx: list[int],
+    allowed: float, models: ModelCheck | None,
+) -> ReachPath | None:  # fmt: skip
+    """A reach whose smoothed path still turns a corner at speed (its LDLJ on the minimum-jerk
+    clock under ``CURVE_FROM``), made again on a curve: each hand on a cubic Bezier from where
+    it starts to its site, arriving along the way the path arrives (the TO's line in along the
+    site's normal), the arm solved onto it point by point from the path's own pose. The
+    approach point's corner, smoothed no wider for the site's surface, turned the drain valve's
+    reach 70 deg in three frames at 40 cm/s (LDLJ -8.0 where its speed profile alone scores
+    -5.3). Kept if it goes no deeper (``approach_depth``), every point is solved within
+    ``CURVE_TOL``, no joint turns more than ``CURVE_STEP`` between two points, and it scores
+    ``CURVE_GAIN`` better; else None (the path stays as it was)."""
+    if not set(m.effectors) <= {"r_hand", "l_hand"}:
+        return None
+    if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
+        return None  # a press in place: its jerk is the solver's noise, not a corner
+    before = bell_ldlj(list(at.transpose(1, 0, 2)), u, LDLJ_POINTS)
+    if before >= CURVE_FROM:
+        return None
+    # the moving hands' arms alone: the trunk as the path has it (solved with the trunk, the
+    # curve bobbed the thorax 17 deg out and back, and the joints' share of the progress then
+    # slowed the hand where they turned: LDLJ -11 for a curve that scores -6 by its length)
+    arms = {d for e in m.effectors for d in arm_dofs(ir.skeleton, e)}
+    moving = [d for d in idx if d in arms]
+    if not moving:
+        return None
+    best: tuple[float, ReachPath] | None = None
+    was: float | None = None  # the path's own depth into the models, once asked
+    for handle, leaving in itertools.product(CURVE_HANDLES, (True, False)):
+        tried = _on_curve(ir, m, chosen, at, u, idx, moving, handle, leaving)
+        if tried is None:
+            continue
+        curve, at_curve, u_curve = tried
+        score = bell_ldlj(list(at_curve.transpose(1, 0, 2)), u_curve, LDLJ_POINTS)
+        if score < before + CURVE_GAIN or (best is not None and score <= best[0]):
+            continue
+        if approach_depth(ir, m, curve)[0] > allowed:
+            continue
+        # with scene models the path may have been bent round them (``detour``): the curve
+        # keeps ``detour.MARGIN`` where the path did, and goes no deeper where it did not
+        if models is not None and ir.geometry:
+            if was is None:
+                was = max(models.depth(m, chosen), -MARGIN)
+            if models.depth(m, curve) > was + APPROACH_SPARE:
+                continue
+        best = (score, ReachPath(u_curve, curve.q[:, idx]))
+    return None if best is None else best[1]
+
+
+def _on_curve(
+    ir: MotionIR, m: Movement, chosen: Frames, at: FloatArray, u: FloatArray, idx: list[int],
+    moving: list[int], handle: float, leaving: bool,
+) -> tuple[Frames, FloatArray, FloatArray] | None:  # fmt: skip
+    """The path with each hand on its cubic Bezier (the last control point ``handle`` x the
+    chord out on the line it arrives along; the first as far along the way the path leaves
+    where ``leaving``, else a third of the way to the last), the ``moving`` dofs solved onto it
+    from the path's pose at the same share of the way; its hands' positions and progress. None
+    where a point is off by more than ``CURVE_TOL`` or a joint turns more than ``CURVE_STEP``
+    between two."""
+    n = len(chosen.time)
+    w = np.linspace(0.0, 1.0, n)[:, None]
+    targets = np.empty_like(at)
+    for e in range(at.shape[1]):
+        start, end = at[0, e], at[-1, e]
+        chord = float(np.linalg.norm(end - start))
+        # the ways the path leaves and arrives, each over ``CURVE_END_SHARE`` of it: a hand
+        # by the knee, sent straight at the curve's far end, took its forearm 83 mm into the
+        # thigh where the path's own first stretch leaves it
+        leave = at[int(np.searchsorted(u, CURVE_END_SHARE)), e] - start
+        arrive = end - at[int(np.searchsorted(u, 1.0 - CURVE_END_SHARE)), e]
+        if chord <= EPS or min(float(np.linalg.norm(leave)), float(np.linalg.norm(arrive))) <= EPS:
+            return None
+        c2 = end - handle * chord * arrive / float(np.linalg.norm(arrive))
+        c1 = start + (handle * chord * leave / float(np.linalg.norm(leave)) if leaving
+                      else (c2 - start) / 3.0)  # fmt: skip
+        targets[:, e] = (
+            (1 - w) ** 3 * start + 3 * (1 - w) ** 2 * w * c1 + 3 * (1 - w) * w**2 * c2 + w**3 * end
+        )
+    seed = chosen.q[np.clip(np.searchsorted(u, w[:, 0]), 0, n - 1)]
+    goals = [Goal(e, position=targets[:, k]) for k, e in enumerate(m.effectors)]
+    res = solve_ta(ir.skeleton, goals, seed, dofs=moving, root_position=chosen.root_position,
+                   root_rotation=chosen.root_rotation, restarts=0, tol=1e-6)  # fmt: skip
+    if not float(np.max(res.position_error)) <= CURVE_TOL:
+        return None
+    q = ir.skeleton.clip(np.asarray(res.q))
+    q[0], q[-1] = chosen.q[0], chosen.q[-1]
+    if float(np.abs(np.diff(q[:, idx], axis=0)).max(initial=0.0)) > CURVE_STEP:
+        return None
+    curve = Frames(0.0, chosen.time, chosen.root_position, chosen.root_rotation, q)
+    at_curve = part_site_positions(ir.skeleton, q, curve.root_position, curve.root_rotation,
+                                   m.effectors)  # fmt: skip
+    u_curve, _ = progress(ir, m, curve, at_curve)
+    return curve, at_curve, u_curve
 
 
 def _from_carried_end(
@@ -584,13 +721,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     _, frames_all = _body(ir, np.concatenate(grids))
     paths: list[ReachPath | None] = []
     rigid = carries(ir)
+    models = ModelCheck(ir) if ir.geometry else None
     a = 0
     for m, grid in zip(moves, grids, strict=True):
         b = a + len(grid)
         part = Frames(0.0, grid, frames_all.root_position[a:b], frames_all.root_rotation[a:b],
                       frames_all.q[a:b])  # fmt: skip
         a = b
-        paths.append(reach_path(ir, m, part, rigid))
+        paths.append(reach_path(ir, m, part, rigid, models))
     # movements too short for their joints last longer, and everything after them waits
     fps = ctx.options.fps
     stretches = [

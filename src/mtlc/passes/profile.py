@@ -16,6 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 from mtlc.ir.model import FloatArray
+from mtlc.ir.pchip import pchip
+
+JOINT_WEIGHT = 0.02  # m of a reach's progress per radian of its joints (L2 over its dofs)
 
 PLACING_SKEW = 1.5  # tau -> 1 - (1 - tau)^1.5: the end approached more slowly than the start left
 
@@ -65,3 +68,22 @@ def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
     n = min(len(q) - 1, int(np.ceil(4 * sigma)))
     padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
     return gaussian_rows(padded, sigma)[n : n + len(q)]
+
+
+def bell_ldlj(paths: list[FloatArray], u: FloatArray, points: int) -> float:
+    """The log dimensionless jerk (docs/metrics.md's reach figure; Balasubramanian et al. 2012)
+    of the roughest of ``paths`` ((K, 3) each, at rising progress ``u`` from 0 to 1) when the
+    progress follows one minimum-jerk bell, sampled at ``points``: how a path will score once
+    ``pace`` times it, before there are frames. 0.0 where nothing moves."""
+    tau = np.linspace(0.0, 1.0, points)
+    dt = tau[1] - tau[0]
+    worst = np.inf
+    for p in paths:
+        path = pchip(u, p)(minimum_jerk(tau))
+        speed = np.linalg.norm(np.diff(path, axis=0), axis=1) / dt
+        top = float(speed.max())
+        if top <= 1e-9:
+            continue
+        jerk = float(np.sum(np.diff(path, n=3, axis=0) ** 2) / dt**5)
+        worst = min(worst, -float(np.log(max(jerk / top**2, 1e-300))))
+    return float(worst) if np.isfinite(worst) else 0.0

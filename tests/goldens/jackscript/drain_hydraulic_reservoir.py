@@ -176,56 +176,60 @@ def drain_reservoir():
     human.KeyJoints(2.5, {'neck': (-1.505, 0.0, 0.0), 'head': (-1.505, 0.0)})
     human.KeyJoints(2.6, {
         'neck': (-2.254, 0.0, 0.0), 'head': (-2.254, 0.0),
-        'right_shoulder': (89.757, -29.27, 11.459),
+        'right_shoulder': (89.757, -29.27, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
         'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0),
-        'right_shoulder': (89.834, -29.001, 11.381), 'right_elbow': (34.36, 17.187),
-        'right_wrist': (-0.022, -0.017),
+        'right_shoulder': (89.658, -29.001, 11.459), 'right_elbow': (34.727, 17.186),
+        'right_wrist': (-0.012, 0.073),
     })
     human.KeyJoints(2.8, {
-        'right_shoulder': (90.276, -27.476, 10.939), 'right_wrist': (-0.149, -0.113),
+        'spine_thoracic': (29.974, -0.009, 0.011), 'right_shoulder': (89.256, -27.498, 11.35),
+        'right_elbow': (36.474, 17.175), 'right_wrist': (-0.124, 0.427),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (59.959, -0.022, 0.037), 'spine_thoracic': (29.932, -0.024, 0.03),
-        'right_clavicle': (0.012, 0.028), 'right_shoulder': (91.251, -24.392, 10.045),
-        'right_elbow': (34.067, 17.162), 'right_wrist': (-0.408, -0.307),
+        'spine_lumbar': (59.941, -0.034, 0.058), 'spine_thoracic': (29.9, -0.037, 0.046),
+        'right_clavicle': (0.019, 0.042), 'right_shoulder': (89.408, -24.57, 10.605),
+        'right_elbow': (38.594, 17.156), 'right_wrist': (-0.497, 0.753),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (59.868, -0.101, 0.177), 'spine_thoracic': (29.745, -0.111, 0.142),
-        'right_clavicle': (0.058, 0.118), 'right_shoulder': (93.051, -20.131, 8.797),
-        'right_elbow': (33.825, 17.14),
+        'spine_lumbar': (59.823, -0.164, 0.289), 'spine_thoracic': (29.632, -0.18, 0.232),
+        'right_clavicle': (0.095, 0.184), 'right_shoulder': (91.786, -20.366, 9.365),
+        'right_elbow': (38.156, 17.134), 'right_wrist': (-0.868, 0.445),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (59.728, -0.477, 0.867), 'spine_thoracic': (29.285, -0.532, 0.702),
-        'right_clavicle': (0.289, 0.491), 'right_shoulder': (96.271, -15.325, 7.327),
-        'right_elbow': (33.435, 17.121), 'right_wrist': (-1.246, -0.87),
+        'spine_lumbar': (59.724, -0.695, 1.278), 'spine_thoracic': (29.173, -0.78, 1.038),
+        'right_clavicle': (0.432, 0.692), 'right_shoulder': (95.777, -14.769, 7.591),
+        'right_elbow': (35.63, 17.117), 'right_wrist': (-1.301, -0.343),
     })
     human.KeyJoints(3.2, {
-        'spine_lumbar': (59.806, -1.262, 2.366), 'spine_thoracic': (29.138, -1.432, 1.935),
-        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.821, 1.195),
-        'right_shoulder': (100.093, -10.326, 5.71), 'right_wrist': (-1.765, -1.289),
+        'spine_lumbar': (59.852, -1.467, 2.764), 'spine_thoracic': (29.18, -1.669, 2.264),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.966, 1.373),
+        'right_shoulder': (99.481, -9.327, 5.668), 'right_elbow': (33.987, 17.109),
+        'right_wrist': (-1.918, -0.944),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.951, -1.866, 3.54), 'spine_thoracic': (29.3, -2.131, 2.906),
-        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.251, 1.717),
-        'right_shoulder': (102.574, -6.814, 4.564), 'right_elbow': (31.439, 17.106),
-        'right_wrist': (-2.125, -1.627),
+        'spine_lumbar': (59.969, -1.937, 3.678), 'spine_thoracic': (29.325, -2.213, 3.02),
+        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.302, 1.777),
+        'right_shoulder': (102.255, -6.41, 4.53), 'right_elbow': (32.158, 17.106),
+        'right_wrist': (-2.207, -1.478),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (59.999, -2.051, 3.901), 'spine_thoracic': (29.365, -2.346, 3.205),
-        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.384, 1.876),
-        'right_shoulder': (103.45, -5.725, 4.207), 'right_elbow': (30.902, 17.105),
-        'right_wrist': (-2.213, -1.778),
+        'spine_lumbar': (59.999, -2.053, 3.904), 'spine_thoracic': (29.365, -2.348, 3.208),
+        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001),
+        'right_shoulder': (103.442, -5.716, 4.206), 'right_elbow': (30.918, 17.105),
+        'right_wrist': (-2.214, -1.775),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003), 'right_elbow': (30.878, 17.105),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003), 'right_clavicle': (1.387, 1.879),
+        'right_elbow': (30.878, 17.105),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {

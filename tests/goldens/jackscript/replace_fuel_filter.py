@@ -572,54 +572,53 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
         'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
-        'left_shoulder': (52.272, 13.357, 19.269), 'left_elbow': (14.098, 51.573),
-        'left_wrist': (-46.162, 14.974),
+        'left_shoulder': (52.307, 13.357, 19.187), 'left_elbow': (14.066, 51.565),
+        'left_wrist': (-45.776, 14.844),
     })
     human.KeyJoints(10.3, {
         'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
-        'left_shoulder': (44.883, 15.567, 13.317), 'left_elbow': (28.281, 50.351),
-        'left_wrist': (-48.782, 15.29),
+        'left_shoulder': (45.124, 15.529, 13.379), 'left_elbow': (27.482, 50.393),
+        'left_wrist': (-47.419, 14.838),
     })
     human.KeyJoints(10.4, {
         'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
-        'left_shoulder': (32.623, 19.142, 3.357), 'left_elbow': (50.374, 48.262),
-        'left_wrist': (-52.717, 15.702),
+        'left_shoulder': (32.547, 19.063, 3.89), 'left_elbow': (48.667, 48.398),
+        'left_wrist': (-49.98, 14.815),
     })
     human.KeyJoints(10.5, {
         'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
-        'left_shoulder': (16.23, 23.477, -9.859), 'left_elbow': (73.078, 45.265),
-        'left_wrist': (-56.891, 15.917),
+        'left_shoulder': (16.885, 31.354, 4.02), 'left_elbow': (68.637, 43.51),
+        'left_wrist': (-60.362, 3.242),
     })
     human.KeyJoints(10.6, {
-        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-5.395, 27.919, -26.805),
-        'left_elbow': (86.066, 40.686), 'left_wrist': (-59.878, 14.848),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-0.277, 28.572, -24.971),
+        'left_elbow': (82.845, 41.709), 'left_wrist': (-56.987, 13.843),
     })
     human.KeyJoints(10.7, {
-        'head': (14.88, 11.25), 'left_shoulder': (-26.1, 31.869, -44.096),
-        'left_elbow': (85.741, 35.592), 'left_wrist': (-61.195, 11.873),
+        'head': (14.88, 11.25), 'left_shoulder': (-19.449, 33.503, -43.134),
+        'left_elbow': (89.468, 36.804), 'left_wrist': (-59.616, 11.936),
     })
     human.KeyJoints(10.8, {
-        'left_shoulder': (-38.072, 36.412, -60.79), 'left_elbow': (87.06, 32.389),
-        'left_wrist': (-63.588, 9.483),
+        'left_shoulder': (-34.647, 35.986, -60.053), 'left_elbow': (92.257, 32.693),
+        'left_wrist': (-62.511, 10.055),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-40.838, 38.55, -71.465), 'left_elbow': (92.599, 31.625),
-        'left_wrist': (-66.604, 9.03),
+        'left_shoulder': (-38.871, 37.5, -71.494), 'left_elbow': (94.58, 31.637),
+        'left_wrist': (-65.496, 9.051),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-41.41, 39.09, -75.502), 'left_elbow': (95.26, 31.469),
-        'left_wrist': (-67.945, 8.986),
+        'left_shoulder': (-41.291, 39.007, -75.505), 'left_elbow': (95.397, 31.468),
+        'left_wrist': (-67.885, 8.992),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'left_shoulder': (-41.453, 39.119, -75.823), 'left_elbow': (95.476, 31.457),
-        'left_wrist': (-68.055, 8.983),
+        'left_shoulder': (-41.453, 39.119, -75.823), 'left_wrist': (-68.055, 8.983),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
-    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
+    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444), 'left_elbow': (95.474, 31.457)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.4, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),

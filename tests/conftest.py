@@ -23,8 +23,9 @@ import functools
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pytest
 
 if TYPE_CHECKING:
@@ -176,3 +177,36 @@ def compile_on(
         timeline = schedule.for_manikin(timeline, manikin)
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions(), until=until), sink
+
+
+def reach_on_frames(
+    ir: MotionIR, site: str, line: int | None = None, effector: str = "r_hand"
+) -> tuple[np.ndarray, np.ndarray, float, Any]:
+    """A reach's rows of the frames (its TA's start to the end of the TO that continues it, to
+    ``site``; ``line``: the task line that asked for it), the ``effector``'s positions on them
+    by forward kinematics, the frames' step (s) and the TO segment."""
+    from mtlc.body import forward, site_positions
+
+    fr = ir.frames
+    assert fr is not None
+    (ta,) = [s for s in ir.segments if s.kind == "TA" and s.goal.site == site
+             and (line is None or s.provenance.origin.line == line)]  # fmt: skip
+    (to,) = [s for s in ir.segments if s.kind == "TO" and s.goal.site == site
+             and abs(s.start - ta.end) < 1e-6]  # fmt: skip
+    rows = np.flatnonzero((fr.time >= ta.start - 1e-9) & (fr.time <= to.end + 1e-9))
+    pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
+                   with_axes=False)  # fmt: skip
+    hand = np.asarray(site_positions(ir.skeleton, pose, [effector]))[:, 0]
+    return rows, hand, float(np.median(np.diff(fr.time))), to
+
+
+@functools.cache
+def bench_human() -> Any:
+    """bench/human.py, the motion bench's own figures (LDLJ, peaks), loaded as a module."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("mtlc_bench_human", ROOT / "bench" / "human.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -46,8 +46,10 @@ def test_a_raised_site_is_stood_in_front_of_and_a_floor_spot_on(
         way = np.array([stand[0] - x, stand[2] - z]) / across
         assert np.allclose(way, flat, atol=1e-9)
     elif math.hypot(sx - x, sz - z) > 1e-6:
-        # on the side the walk comes from: no farther from the start than the site is
-        assert math.hypot(stand[0] - sx, stand[2] - sz) <= math.hypot(x - sx, z - sz) + 1e-9
+        # on the side the walk comes from: from the site toward the start
+        toward = np.array([sx - x, sz - z]) / math.hypot(sx - x, sz - z)
+        way = np.array([stand[0] - x, stand[2] - z]) / across
+        assert np.allclose(way, toward, atol=1e-9)
 
 
 CARRY = """\

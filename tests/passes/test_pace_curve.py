@@ -11,24 +11,18 @@ path it replaced, within the issue's -7, and still ends on its site.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import compile_on
+from conftest import bench_human, compile_on, reach_on_frames
 
-from mtlc.body import forward, site_positions
 from mtlc.passes import pace
 from mtlc.passes.profile import bell_ldlj
 
 ROOT = Path(__file__).resolve().parents[2]
 VALVE = ROOT / "tests" / "data" / "pace_curve" / "c01_low_valve.mtask"
-_spec = importlib.util.spec_from_file_location("mtlc_bench_human", ROOT / "bench" / "human.py")
-assert _spec is not None and _spec.loader is not None
-human = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(human)
 
 
 def test_a_corner_scores_worse_than_a_straight_line_on_the_bell() -> None:
@@ -50,18 +44,9 @@ def _reach_ldlj(path: Path, manikin: tuple[str, int]) -> tuple[float, float]:
     """The right hand's LDLJ over the reach to the valve on the output frames, and its
     distance to the valve at the reach's end."""
     ir, _ = compile_on(path, manikin)
-    fr = ir.frames
-    assert fr is not None
-    (ta,) = [s for s in ir.segments if s.kind == "TA" and s.goal.site == "valve"]
-    (to,) = [s for s in ir.segments if s.kind == "TO" and s.goal.site == "valve"
-             and abs(s.start - ta.end) < 1e-6]  # fmt: skip
-    rows = np.flatnonzero((fr.time >= ta.start - 1e-9) & (fr.time <= to.end + 1e-9))
-    pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
-                   with_axes=False)  # fmt: skip
-    hand = np.asarray(site_positions(ir.skeleton, pose, ["r_hand"]))[:, 0]
-    dt = float(np.median(np.diff(fr.time)))
+    _, hand, dt, to = reach_on_frames(ir, "valve")
     site = np.asarray(to.goal.position, dtype=float)
-    return human._ldlj(hand, dt), float(np.linalg.norm(hand[-1] - site))
+    return bench_human()._ldlj(hand, dt), float(np.linalg.norm(hand[-1] - site))
 
 
 @pytest.mark.parametrize("manikin", [("female", 50), ("male", 95)], ids=["F50", "M95"])

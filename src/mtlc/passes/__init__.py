@@ -31,6 +31,7 @@ from mtlc.passes import (
     pace,
     posture,
     rest,
+    retime,
     sample,
     settle,
     smooth,
@@ -70,6 +71,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
     ("carry", carry.run),  # a part in both hands is rigid: its pose drives both (MT0511)
     ("clearance", clearance.run),  # forearms and hands out of the trunk and thighs (MT0514)
+    ("retime", retime.run),  # a reach the corrections bent is one bell of hand speed again
     ("despike", despike.run),  # an arm's few frames out and back faster than a person: straight
     ("sample", sample.run),  # 8. frames at the output rate
     ("verify", verify.run),  # every claim checked on the frames the user receives: keep last

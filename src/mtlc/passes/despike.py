@@ -1,4 +1,4 @@
-"""Pass 11d: no arm leaves its own motion for a few frames faster than a person moves (issue 19).
+"""Pass 11e: no arm leaves its own motion for a few frames faster than a person moves (issue 19).
 
 The passes that move an arm after interpolation solve it frame by frame: balance restores a
 hand's contact, smoothing re-pins it, clearance keeps the forearm out of the body. Where two

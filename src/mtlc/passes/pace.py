@@ -544,9 +544,11 @@ def _curved(
     site's normal), the arm solved onto it point by point from the path's own pose. The
     approach point's corner, smoothed no wider for the site's surface, turned the drain valve's
     reach 70 deg in three frames at 40 cm/s (LDLJ -8.0 where its speed profile alone scores
-    -5.3). Kept if it goes no deeper (``approach_depth``), every point is solved within
-    ``CURVE_TOL``, no joint turns more than ``CURVE_STEP`` between two points, and it scores
-    ``CURVE_GAIN`` better; else None (the path stays as it was)."""
+    -5.3). Six curves are tried (``CURVE_HANDLES``, each leaving the way the path leaves or
+    straight at its last control point); the best is kept that is solved within ``CURVE_TOL``
+    on every point, turns no joint more than ``CURVE_STEP`` between two, goes no deeper behind
+    a site, under the ground or into the body (``approach_depth``) nor into the scene's models
+    (``models``), and scores ``CURVE_GAIN`` better; else None (the path stays as it was)."""
     if not set(m.effectors) <= {"r_hand", "l_hand"}:
         return None
     if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
@@ -575,7 +577,7 @@ def _curved(
             continue
         # with scene models the path may have been bent round them (``detour``): the curve
         # keeps ``detour.MARGIN`` where the path did, and goes no deeper where it did not
-        if models is not None and ir.geometry:
+        if models is not None:
             if was is None:
                 was = max(models.depth(m, chosen), -MARGIN)
             if models.depth(m, curve) > was + APPROACH_SPARE:

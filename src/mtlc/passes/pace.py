@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -516,22 +517,21 @@ class ModelCheck:
 
     def __init__(self, ir: MotionIR) -> None:
         self.ir = ir
-        self._obstacles: Obstacles | None = None
-        self._made = False
+
+    @cached_property
+    def obstacles(self) -> Obstacles | None:
+        return obstacles_of(self.ir, PoseState(self.ir))
 
     def depth(self, m: Movement, path: Frames) -> float:
         """How deep (m, positive inside) the movement's hands, forearms and held tools go into
         the models along ``path``; -inf without models."""
-        if not self._made:
-            self._obstacles = obstacles_of(self.ir, PoseState(self.ir))
-            self._made = True
-        if self._obstacles is None:
+        if self.obstacles is None:
             return -np.inf
         sides = sorted({e[0] for e in m.effectors})
         arms = ArmCapsules(self.ir, sides, m.start, m.end)
         pose = forward(self.ir.skeleton, path.q, path.root_position, path.root_rotation,
                        with_axes=False)  # fmt: skip
-        return float(arms.depth(self._obstacles, pose, path.time).max(initial=-np.inf))
+        return float(arms.depth(self.obstacles, pose, path.time).max(initial=-np.inf))
 
 
 def _curved(

@@ -65,34 +65,37 @@ def frames_ldlj(p: FloatArray, dt: float) -> float:
     return -math.log(duration**3 / v_peak**2 * integral)
 
 
-def _worst(
-    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, hands: list[str], fps: float
-) -> float:
-    """The reaching hands' worst ``frames_ldlj`` over ``rows`` posed ``q``, on the output
-    frames' grid (``fps``: at the dense 60 a second the corrections' zig-zag of a tenth of a
-    millimetre outweighs every bell); 0.0 for a hand that moves less than ``MIN_PATH``."""
-    p = part_site_positions(skel, q, frames.root_position[rows], frames.root_rotation[rows], hands)
-    t = frames.time[rows]
+def _sites(
+    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, names: list[str]
+) -> FloatArray:
+    """(len(rows), len(names), 3) the sites ``names`` on the ``rows`` posed ``q``: posed once
+    for every measure below."""
+    return part_site_positions(
+        skel, q, frames.root_position[rows], frames.root_rotation[rows], names
+    )
+
+
+def _worst(t: FloatArray, p: FloatArray, fps: float) -> float:
+    """The worst ``frames_ldlj`` of the hands' positions ``p`` (N, H, 3) at times ``t``, on the
+    output frames' grid (``fps``: at the dense 60 a second the corrections' zig-zag of a tenth
+    of a millimetre outweighs every bell); 0.0 for a hand that moves less than ``MIN_PATH``."""
     grid = np.arange(np.ceil(t[0] * fps - 1e-6), np.floor(t[-1] * fps + 1e-6) + 1) / fps
     if len(grid) < 4:
         return 0.0
     worst = 0.0
-    for k in range(len(hands)):
+    for k in range(p.shape[1]):
         at = np.stack([np.interp(grid, t, p[:, k, c]) for c in range(3)], axis=1)
         if float(np.linalg.norm(np.diff(at, axis=0), axis=1).sum()) >= MIN_PATH:
             worst = min(worst, frames_ldlj(at, 1.0 / fps))
     return worst
 
 
-def retimed(
-    skel: object, frames: Frames, rows: np.ndarray, cols: list[int], hands: list[str]
-) -> FloatArray:
-    """The frames ``rows`` with the ``cols`` run along their own path on one minimum-jerk bell
-    over the rows' times: the path at ``PATH_POINTS`` even steps of progress (the ``hands``' arc
-    length plus ``JOINT_WEIGHT`` times the ``cols``' path), low-passed by ``SMOOTH_SIGMA`` of
-    it as pace does (both ends kept); the first and last rows as they were."""
-    q = frames.q[rows]
-    p = part_site_positions(skel, q, frames.root_position[rows], frames.root_rotation[rows], hands)
+def retimed(q: FloatArray, t: FloatArray, p: FloatArray, cols: list[int]) -> FloatArray:
+    """The poses ``q`` (at times ``t``, the hands at ``p`` (N, H, 3)) with the ``cols`` run
+    along their own path on one minimum-jerk bell over the times: the path at ``PATH_POINTS``
+    even steps of progress (the hands' arc length plus ``JOINT_WEIGHT`` times the ``cols``'
+    path), low-passed by ``SMOOTH_SIGMA`` of it as pace does (both ends kept); the first and
+    last rows as they were."""
     step = np.linalg.norm(np.diff(p, axis=0), axis=-1).sum(axis=1)
     step += JOINT_WEIGHT * np.linalg.norm(np.diff(q[:, cols], axis=0), axis=1)
     u = np.concatenate([[0.0], np.cumsum(step)])
@@ -100,7 +103,6 @@ def retimed(
     even = np.linspace(0.0, 1.0, PATH_POINTS)
     path = np.stack([np.interp(even, u, q[:, d]) for d in cols], axis=1)
     path = smooth_path(path, SMOOTH_SIGMA * (PATH_POINTS - 1))
-    t = frames.time[rows]
     s = minimum_jerk((t - t[0]) / (t[-1] - t[0]))
     out = q.copy()
     for k, d in enumerate(cols):
@@ -109,20 +111,17 @@ def retimed(
     return out
 
 
-def _fastest(frames: Frames, rows: np.ndarray, q: FloatArray, cols: list[int]) -> float:
-    """rad/s: the fastest of the ``cols`` between two of the ``rows`` posed ``q``."""
-    dt = np.maximum(np.diff(frames.time[rows]), EPS)
+def _fastest(t: FloatArray, q: FloatArray, cols: list[int]) -> float:
+    """rad/s: the fastest of the ``cols`` of poses ``q`` (at times ``t``) between two rows."""
+    dt = np.maximum(np.diff(t), EPS)
     return float((np.abs(np.diff(q[:, cols], axis=0)) / dt[:, None]).max(initial=0.0))
 
 
-def _arrival(
-    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, hands: list[str], fps: float
-) -> float:
-    """m/s: the fastest reaching hand over the last output frame before the reach's end."""
-    t = frames.time[rows]
+def _arrival(t: FloatArray, p: FloatArray, fps: float) -> float:
+    """m/s: the fastest of the hands at ``p`` (N, H, 3) over the last output frame before
+    the reach's end."""
     last = np.array([t[-1] - 1.0 / fps, t[-1]])
-    p = part_site_positions(skel, q, frames.root_position[rows], frames.root_rotation[rows], hands)
-    ends = np.stack([[np.interp(last, t, p[:, k, c]) for c in range(3)] for k in range(len(hands))])
+    ends = np.stack([[np.interp(last, t, p[:, k, c]) for c in range(3)] for k in range(p.shape[1])])
     return float(np.linalg.norm(ends[:, :, 1] - ends[:, :, 0], axis=1).max()) * fps
 
 
@@ -132,15 +131,6 @@ def _depths(
     """(len(rows),) the deeper of the ``sides``' arms into the body on each row."""
     got = penetrations(skel, q, (frames.root_position[rows], frames.root_rotation[rows]), sides)
     return np.max(np.stack([got[s] for s in sides]), axis=0)
-
-
-def _lowest(
-    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, hands: list[str]
-) -> float:
-    """The lowest fingertip of the reaching hands over the rows."""
-    tips = [FINGERTIPS[h] for h in hands]
-    p = part_site_positions(skel, q, frames.root_position[rows], frames.root_rotation[rows], tips)
-    return float(p[..., 1].min())
 
 
 def reach_again(ir: MotionIR, m: Movement, fps: float, held: list[Carry]) -> bool:
@@ -155,39 +145,39 @@ def reach_again(ir: MotionIR, m: Movement, fps: float, held: list[Carry]) -> boo
         return False
     if any(c.start < m.end - EPS and c.end > m.start + EPS for c in held):
         return False
-    t = frames.time
-    rows = np.flatnonzero((t >= m.start - EPS) & (t <= m.end + EPS))
+    rows = np.flatnonzero((frames.time >= m.start - EPS) & (frames.time <= m.end + EPS))
     if rows.size < MIN_FRAMES:
         return False
-    before = _worst(skel, frames, rows, frames.q[rows], hands, fps)
+    # the hands and their fingertips, posed once for the reach as it is and once re-timed
+    names = [*hands, *(FINGERTIPS[h] for h in hands)]
+    t, was_q = frames.time[rows], frames.q[rows]
+    was_p = _sites(skel, frames, rows, was_q, names)
+    n = len(hands)
+    before = _worst(t, was_p[:, :n], fps)
     if before >= RETIME_FROM:
         return False
-    names = set(m.dofs)
-    cols = sorted({d for h in hands for d in arm_dofs(skel, h) if skel.dof_names[d] in names})
+    keyed = set(m.dofs)
+    cols = sorted({d for h in hands for d in arm_dofs(skel, h) if skel.dof_names[d] in keyed})
     if not cols:
         return False
-    q = retimed(skel, frames, rows, cols, hands)
-    if _worst(skel, frames, rows, q, hands, fps) < before + RETIME_GAIN:
+    q = retimed(was_q, t, was_p[:, :n], cols)
+    p = _sites(skel, frames, rows, q, names)
+    if _worst(t, p[:, :n], fps) < before + RETIME_GAIN:
         return False
     # one bell over a path that crept part of the way turns the joints faster at its peak:
     # no faster than pace lets a reach (or than the reach already did), nor arriving faster
-    if _fastest(frames, rows, q, cols) > max(_fastest(frames, rows, frames.q[rows], cols),
-                                             PEAK_JOINT_SPEED):  # fmt: skip
+    if _fastest(t, q, cols) > max(_fastest(t, was_q, cols), PEAK_JOINT_SPEED):
         return False
-    if _arrival(skel, frames, rows, q, hands, fps) > max(
-        _arrival(skel, frames, rows, frames.q[rows], hands, fps), CONTACT_SPEED
-    ):
+    if _arrival(t, p[:, :n], fps) > max(_arrival(t, was_p[:, :n], fps), CONTACT_SPEED):
         return False
     sides = tuple(sorted({h[0] for h in hands}))
-    was = float(_depths(skel, frames, rows, frames.q[rows], sides).max())
+    was = float(_depths(skel, frames, rows, was_q, sides).max())
     if float(_depths(skel, frames, rows, q, sides).max()) > (
         was + DEEPER_INSIDE if was > 0.0 else DEEPER
     ):
         return False
-    if (
-        _lowest(skel, frames, rows, q, hands)
-        < min(_lowest(skel, frames, rows, frames.q[rows], hands), ir.ground) - EPS
-    ):
+    # no fingertip lower than it was, or than the ground
+    if float(p[:, n:, 1].min()) < min(float(was_p[:, n:, 1].min()), ir.ground) - EPS:
         return False
     frames.q[rows] = q
     return True

@@ -259,10 +259,14 @@ def _deeper(skel: Skeleton, frames: Frames, kept: slice, before: FloatArray, sid
     inside = np.flatnonzero(now > 0.0)
     if inside.size == 0:
         return False
-    was_inside = penetrations(skel, before[changed[inside]], _rows(root, inside), (side,))[side]
-    if not (now[inside] > np.maximum(was_inside, 0.0)).any():
+    was = np.full(len(rows), -np.inf)
+    was[inside] = penetrations(skel, before[changed[inside]], _rows(root, inside), (side,))[side]
+    if not (now[inside] > np.maximum(was[inside], 0.0)).any():
         return False
-    was = penetrations(skel, before[changed], root, (side,))[side]
+    # the others too, for the whole: each frame's figure is its own
+    out = np.flatnonzero(now <= 0.0)
+    if out.size:
+        was[out] = penetrations(skel, before[changed[out]], _rows(root, out), (side,))[side]
     worst = float(np.max(was, initial=0.0))
     if worst <= 0.0 or float(now.max()) > worst + DEEPER_TOL:
         return True

@@ -190,9 +190,10 @@ def reach_on_frames(
     fr = ir.frames
     assert fr is not None
     (ta,) = [s for s in ir.segments if s.kind == "TA" and s.goal.site == site
+             and s.goal.effector == effector
              and (line is None or s.provenance.origin.line == line)]  # fmt: skip
     (to,) = [s for s in ir.segments if s.kind == "TO" and s.goal.site == site
-             and abs(s.start - ta.end) < 1e-6]  # fmt: skip
+             and s.track == ta.track and abs(s.start - ta.end) < 1e-6]  # fmt: skip
     rows = np.flatnonzero((fr.time >= ta.start - 1e-9) & (fr.time <= to.end + 1e-9))
     pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
                    with_axes=False)  # fmt: skip

@@ -60,3 +60,43 @@ def test_the_low_valves_reach_is_one_smooth_curve(
     monkeypatch.setattr(pace, "CURVE_FROM", -math.inf)
     was, _ = _reach_ldlj(VALVE, manikin)
     assert was < now - 0.5, f"{was:.2f} -> {now:.2f}"
+
+
+MODULE = ROOT / "tests" / "data" / "pace_curve" / "c02_module_into_slot.mtask"
+
+
+def _module_move(manikin: tuple[str, int]) -> tuple[float, float, float]:
+    """Both hands' worst LDLJ over the carried module's move into its slot (line 20), their
+    worst distance to the slot at its end and how much the module's width changed (m)."""
+    from mtlc.body import forward, site_positions
+
+    ir, _ = compile_on(MODULE, manikin)
+    fr = ir.frames
+    assert fr is not None
+    worst, off = 0.0, 0.0
+    for hand in ("r_hand", "l_hand"):
+        rows, p, dt, to = reach_on_frames(ir, "rack_slot", line=20, effector=hand)
+        worst = min(worst, bench_human()._ldlj(p, dt))
+        off = max(off, float(np.linalg.norm(p[-1] - np.asarray(to.goal.position))))
+    pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
+                   with_axes=False)  # fmt: skip
+    both = np.asarray(site_positions(ir.skeleton, pose, ["r_hand", "l_hand"]))
+    width = np.linalg.norm(both[:, 0] - both[:, 1], axis=1)
+    return worst, off, float(np.ptp(width))
+
+
+@pytest.mark.parametrize("manikin", [("female", 50), ("male", 95)], ids=["F50", "M95"])
+def test_a_part_pushed_in_with_both_hands_comes_in_on_a_curve(
+    manikin: tuple[str, int], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """tests/data/pace_curve/c02: a module carried to its rack slot starts in the slot's own
+    plane, so the carried path went up, out along the slot's normal and back in: a perfect bell
+    of speed, LDLJ -8.0 by its turns. On a curve it comes in along the normal, still held as
+    one part, onto the slot."""
+    now, off, squeeze = _module_move(manikin)
+    assert off <= 0.002
+    assert squeeze <= 0.002, f"the module's width changed {squeeze * 1000:.1f} mm"
+    assert now >= -7.0, f"LDLJ {now:.2f}"
+    monkeypatch.setattr(pace, "CURVE_FROM", -math.inf)
+    was, _, _ = _module_move(manikin)
+    assert was < -7.5 and was < now - 1.0, f"{was:.2f} -> {now:.2f}"

@@ -349,7 +349,9 @@ def grip_length(ir: MotionIR, carry: Carry) -> float:
     return float(np.linalg.norm(hands[0] - hands[1]))
 
 
-def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Carry) -> Frames:
+def _carried(
+    ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Carry, bend: bool = False
+) -> Frames:
     """A path on which the part in both hands is rigid by construction: each arm's own path
     (at even progress, smoothed by ``SMOOTH_SIGMA``) says where the part goes, the part's
     path (``carry.part_path``: its centre, its axis turning on one plane, its length the
@@ -363,12 +365,15 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
     ``END_BLEND`` of the path and those points are solved again from there. Where the goal is
     out of reach for the part held rigid, the part stops at the last point both hands reach
     (``REACH_TOL``) and the path is that far (the goal's shortfall is the hands' distance to
-    their goals there; verify reports it, MT0501)."""
+    their goals there; verify reports it, MT0501). ``bend``: the part's centre on a curve
+    (``_curved_part``)."""
     skel = ir.skeleton
     smooth = _smoothed(ir, m, body, idx, (), SMOOTH_SIGMA)
     rows = np.arange(len(smooth.time))
     hands = hand_pair(skel, smooth, rows, smooth.q)
     goal = part_path(hands, grip_length(ir, carry))
+    if bend:
+        goal = _curved_part(goal)
     # the arm chains the later arm segments key (shoulder, elbow, wrist): a clavicle moved here
     # kept its new angle until something keyed it again, and the next two-handed reach, solved
     # from the old one, closed on its part 6 cm wide (vehicle_battery male P5)
@@ -400,6 +405,65 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
     out = Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, q)
     _record_shortfall(ir, m, out)
     return out
+
+
+def _curved_part(goal: FloatArray) -> FloatArray:
+    """The part's path ``goal`` (P, 2, 3: its two ends) with its centre moved onto the best
+    of ``_curved``'s six Bezier curves (``bezier``) by the centre's own score on the
+    minimum-jerk clock, each point shifted as a whole (the part stays rigid); as it was where
+    none scores ``CURVE_GAIN`` better."""
+    centre = goal.mean(axis=1)
+
+    def share(path: FloatArray) -> FloatArray:
+        step = np.linalg.norm(np.diff(path, axis=0), axis=1)
+        u = np.concatenate([[0.0], np.cumsum(step)])
+        return u / max(float(u[-1]), EPS) + np.arange(len(u)) * 1e-12
+
+    u = share(centre)
+    before = bell_ldlj([centre], u, LDLJ_POINTS)
+    best: tuple[float, FloatArray] | None = None
+    for handle, leaving in itertools.product(CURVE_HANDLES, (True, False)):
+        curve = bezier(centre, u, handle, leaving)
+        if curve is None:
+            continue
+        score = bell_ldlj([curve], share(curve), LDLJ_POINTS)
+        if score >= before + CURVE_GAIN and (best is None or score > best[0]):
+            best = (score, goal + (curve - centre)[:, None, :])
+    return goal if best is None else best[1]
+
+
+def _carried_curve(
+    ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Carry, chosen: Frames,
+    u: FloatArray, models: ModelCheck | None,
+) -> tuple[Frames, FloatArray] | None:  # fmt: skip
+    """A part moved in both hands whose path turns a corner at speed (``_curved``'s test, on
+    the hands of the carried path ``chosen`` at progress ``u``), carried again with its
+    centre on a curve (``_carried`` with ``bend``): kept, with its progress, where the hands
+    then score ``CURVE_GAIN`` better and it goes no deeper behind a site, under the ground,
+    into the body or the scene's models; else None. The carried path doubles back where the
+    TO's line in along the site's normal starts in the part's own plane (a module pushed into
+    its rack slot, LDLJ -8.0 with a perfect bell of speed)."""
+    skel = ir.skeleton
+    at = part_site_positions(skel, chosen.q, chosen.root_position, chosen.root_rotation,
+                             m.effectors)  # fmt: skip
+    if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
+        return None
+    before = bell_ldlj(list(at.transpose(1, 0, 2)), u, LDLJ_POINTS)
+    if before >= CURVE_FROM:
+        return None
+    bent = _carried(ir, m, body, idx, carry, bend=True)
+    at_bent = part_site_positions(skel, bent.q, bent.root_position, bent.root_rotation,
+                                  m.effectors)  # fmt: skip
+    u_bent, _ = progress(ir, m, bent, at_bent)
+    if bell_ldlj(list(at_bent.transpose(1, 0, 2)), u_bent, LDLJ_POINTS) < before + CURVE_GAIN:
+        return None
+    if approach_depth(ir, m, bent)[0] > approach_depth(ir, m, chosen)[0] + APPROACH_SPARE:
+        return None
+    if models is not None and models.depth(m, bent) > (
+        max(models.depth(m, chosen), -MARGIN) + APPROACH_SPARE
+    ):
+        return None
+    return bent, u_bent
 
 
 def _cleaned(
@@ -492,6 +556,9 @@ def reach_path(
     if len(held) == 1 and held[0].start <= m.start + EPS:  # the part moved from where it is
         chosen = _carried(ir, m, body, idx, held[0])
         u2, _ = progress(ir, m, chosen)
+        bent = _carried_curve(ir, m, body, idx, held[0], chosen, u2, models)
+        if bent is not None:
+            chosen, u2 = bent
         return ReachPath(u2, chosen.q[:, idx], carried=True)
     chosen = _smoothed(ir, m, body, idx, held, SMOOTH_SIGMA)
     allowed, at, pose = approach_depth(ir, m, chosen)
@@ -586,6 +653,28 @@ def _curved(
     return None if best is None else best[1]
 
 
+def bezier(at: FloatArray, u: FloatArray, handle: float, leaving: bool) -> FloatArray | None:
+    """A path's points ``at`` (N, 3) at progress ``u`` remade as a cubic Bezier from its start
+    to its end at N even steps of its parameter: the last control point ``handle`` x the chord
+    out on the line the path arrives along, the first as far along the way it leaves where
+    ``leaving``, else a third of the way to the last. None where it does not move or has no
+    way in or out."""
+    start, end = at[0], at[-1]
+    chord = float(np.linalg.norm(end - start))
+    # the ways the path leaves and arrives, each over ``CURVE_END_SHARE`` of it: a hand by the
+    # knee, sent straight at the curve's far end, took its forearm 83 mm into the thigh where
+    # the path's own first stretch leaves it
+    leave = at[int(np.searchsorted(u, CURVE_END_SHARE))] - start
+    arrive = end - at[int(np.searchsorted(u, 1.0 - CURVE_END_SHARE))]
+    if chord <= EPS or min(float(np.linalg.norm(leave)), float(np.linalg.norm(arrive))) <= EPS:
+        return None
+    c2 = end - handle * chord * arrive / float(np.linalg.norm(arrive))
+    c1 = start + (handle * chord * leave / float(np.linalg.norm(leave)) if leaving
+                  else (c2 - start) / 3.0)  # fmt: skip
+    w = np.linspace(0.0, 1.0, len(at))[:, None]
+    return (1 - w) ** 3 * start + 3 * (1 - w) ** 2 * w * c1 + 3 * (1 - w) * w**2 * c2 + w**3 * end
+
+
 def _on_curve(
     ir: MotionIR, m: Movement, chosen: Frames, at: FloatArray, u: FloatArray, idx: list[int],
     moving: list[int], handle: float, leaving: bool,
@@ -600,21 +689,10 @@ def _on_curve(
     w = np.linspace(0.0, 1.0, n)[:, None]
     targets = np.empty_like(at)
     for e in range(at.shape[1]):
-        start, end = at[0, e], at[-1, e]
-        chord = float(np.linalg.norm(end - start))
-        # the ways the path leaves and arrives, each over ``CURVE_END_SHARE`` of it: a hand
-        # by the knee, sent straight at the curve's far end, took its forearm 83 mm into the
-        # thigh where the path's own first stretch leaves it
-        leave = at[int(np.searchsorted(u, CURVE_END_SHARE)), e] - start
-        arrive = end - at[int(np.searchsorted(u, 1.0 - CURVE_END_SHARE)), e]
-        if chord <= EPS or min(float(np.linalg.norm(leave)), float(np.linalg.norm(arrive))) <= EPS:
+        curve = bezier(at[:, e], u, handle, leaving)
+        if curve is None:
             return None
-        c2 = end - handle * chord * arrive / float(np.linalg.norm(arrive))
-        c1 = start + (handle * chord * leave / float(np.linalg.norm(leave)) if leaving
-                      else (c2 - start) / 3.0)  # fmt: skip
-        targets[:, e] = (
-            (1 - w) ** 3 * start + 3 * (1 - w) ** 2 * w * c1 + 3 * (1 - w) * w**2 * c2 + w**3 * end
-        )
+        targets[:, e] = curve
     seed = chosen.q[np.clip(np.searchsorted(u, w[:, 0]), 0, n - 1)]
     goals = [Goal(e, position=targets[:, k]) for k, e in enumerate(m.effectors)]
     res = solve_ta(ir.skeleton, goals, seed, dofs=moving, root_position=chosen.root_position,

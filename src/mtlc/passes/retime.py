@@ -25,12 +25,14 @@ than it was or the ground; else the reach stays as it was.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from mtlc.body import part_site_positions
 from mtlc.body.ik.clearance import penetrations
 from mtlc.ir.model import FloatArray, Frames, MotionIR
+from mtlc.metrics import FOOT_POINT_NAMES
 from mtlc.passes.approach import FINGERTIPS
 from mtlc.passes.carry import Carry, carries
 from mtlc.passes.context import PassContext
@@ -49,6 +51,8 @@ PATH_POINTS = 241  # the corrected path resampled at even progress, as pace samp
 SMOOTH_SIGMA = (
     0.05  # of the progress: its low-pass (pace's least is 0.1: this path is bent already)
 )
+FEET_SLIP = 2e-4  # m: how much further a re-timed body's soles may go than they went
+FOOT_SITES = [f"{side}_{point}" for side in "rl" for point in FOOT_POINT_NAMES]
 EPS = 1e-9
 
 
@@ -65,14 +69,10 @@ def frames_ldlj(p: FloatArray, dt: float) -> float:
     return -math.log(duration**3 / v_peak**2 * integral)
 
 
-def _sites(
-    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, names: list[str]
-) -> FloatArray:
-    """(len(rows), len(names), 3) the sites ``names`` on the ``rows`` posed ``q``: posed once
-    for every measure below."""
-    return part_site_positions(
-        skel, q, frames.root_position[rows], frames.root_rotation[rows], names
-    )
+def _sites(skel: object, body: Body, names: list[str]) -> FloatArray:
+    """(N, len(names), 3) the sites ``names`` of the poses ``body``: posed once for every
+    measure below."""
+    return part_site_positions(skel, body.q, body.root_position, body.root_rotation, names)
 
 
 def _worst(t: FloatArray, p: FloatArray, fps: float) -> float:
@@ -125,33 +125,102 @@ def _arrival(t: FloatArray, p: FloatArray, fps: float) -> float:
     return float(np.linalg.norm(ends[:, :, 1] - ends[:, :, 0], axis=1).max()) * fps
 
 
-def _depths(
-    skel: object, frames: Frames, rows: np.ndarray, q: FloatArray, sides: tuple[str, ...]
-) -> FloatArray:
-    """(len(rows),) the deeper of the ``sides``' arms into the body on each row."""
-    got = penetrations(skel, q, (frames.root_position[rows], frames.root_rotation[rows]), sides)
+def _depths(skel: object, body: Body, sides: tuple[str, ...]) -> FloatArray:
+    """(N,) the deeper of the ``sides``' arms into the body on each pose of ``body``."""
+    got = penetrations(skel, body.q, (body.root_position, body.root_rotation), sides)
     return np.max(np.stack([got[s] for s in sides]), axis=0)
+
+
+@dataclass(frozen=True)
+class Body:
+    """The poses of a reach's rows: joints and root."""
+
+    q: FloatArray
+    root_position: FloatArray
+    root_rotation: FloatArray
+
+    @classmethod
+    def of(cls, frames: Frames, rows: np.ndarray) -> Body:
+        return cls(frames.q[rows], frames.root_position[rows], frames.root_rotation[rows])
+
+    def with_q(self, q: FloatArray) -> Body:
+        return Body(q, self.root_position, self.root_rotation)
+
+
+def warped(body: Body, t: FloatArray, p: FloatArray, cols: list[int]) -> Body:
+    """The whole body (every joint and the root) run along its own poses on one minimum-jerk
+    bell of the hands' progress (their arc length plus ``JOINT_WEIGHT`` times the ``cols``'
+    path, as ``retimed`` measures it): a monotone warp of the window's clock, each new pose
+    between two neighbouring ones, nothing low-passed. The feet stay where they stand and a
+    part in both hands keeps its length (every pose is one the corrections made); the first
+    and last rows as they were."""
+    step = np.linalg.norm(np.diff(p, axis=0), axis=-1).sum(axis=1)
+    step += JOINT_WEIGHT * np.linalg.norm(np.diff(body.q[:, cols], axis=0), axis=1)
+    u = np.concatenate([[0.0], np.cumsum(step)])
+    u = u / u[-1] + np.arange(len(u)) * 1e-12
+    at = np.interp(minimum_jerk((t - t[0]) / (t[-1] - t[0])), u, np.arange(len(u), dtype=float))
+    i = np.clip(np.floor(at).astype(np.intp), 0, len(u) - 2)
+    f = (at - i)[:, None]
+
+    def between(v: FloatArray) -> FloatArray:
+        return v[i] * (1.0 - f) + v[i + 1] * f
+
+    rot0, rot1 = body.root_rotation[i], body.root_rotation[i + 1]
+    rot1 = np.where(np.sum(rot0 * rot1, axis=1, keepdims=True) < 0.0, -rot1, rot1)
+    rotation = rot0 * (1.0 - f) + rot1 * f
+    rotation /= np.linalg.norm(rotation, axis=1, keepdims=True)
+    out = Body(between(body.q), between(body.root_position), rotation)
+    for v, was in zip(
+        (out.q, out.root_position, out.root_rotation),
+        (body.q, body.root_position, body.root_rotation),
+        strict=True,
+    ):
+        v[0], v[-1] = was[0], was[-1]
+    return out
+
+
+# segments whose start or end inside a window is a claim at that time: a warp of the window's
+# clock would move it (the reach's own TA → TO boundary is its own)
+TIMED_KINDS = frozenset({"TA", "TO", "grip", "posture", "hold", "rest"})
+
+
+def _warpable(ir: MotionIR, m: Movement) -> bool:
+    """Whether the whole body may be re-timed over ``m``'s window: no walk in it, and no other
+    segment starts or ends inside it."""
+    own = {id(s) for s in m.segments}
+    for s in ir.segments:
+        if id(s) in own or s.end <= m.start + EPS or s.start >= m.end - EPS:
+            continue
+        if s.kind == "locomotion":
+            return False
+        if s.kind in TIMED_KINDS and any(m.start + EPS < x < m.end - EPS for x in (s.start, s.end)):
+            return False
+    return True
+
+
+def _feet_moved(skel: object, body: Body) -> float:
+    """m: how far the soles' points go from where they are on the first pose."""
+    p = _sites(skel, body, FOOT_SITES)
+    return float(np.linalg.norm(p - p[:1], axis=-1).max())
 
 
 def reach_again(ir: MotionIR, m: Movement, fps: float, held: list[Carry]) -> bool:
     """Re-time the movement ``m`` on the frames in place where that passes (the module
-    docstring); whether it did. ``held``: the spans where both hands hold one part, whose
-    reaches are left alone (each arm's joints low-passed on their own would squeeze the part:
-    MT0511, three more on the procedures)."""
+    docstring); whether it did. ``held``: the spans where both hands hold one part, whose arms
+    are not re-timed alone (each arm's joints low-passed on their own would squeeze the part:
+    MT0511, three more on the procedures); the whole body may be."""
     skel, frames = ir.skeleton, ir.frames
     assert frames is not None
     hands = [e for e in m.effectors if e in ("r_hand", "l_hand")]
     if not hands or len(hands) != len(m.effectors):
-        return False
-    if any(c.start < m.end - EPS and c.end > m.start + EPS for c in held):
         return False
     rows = np.flatnonzero((frames.time >= m.start - EPS) & (frames.time <= m.end + EPS))
     if rows.size < MIN_FRAMES:
         return False
     # the hands and their fingertips, posed once for the reach as it is and once re-timed
     names = [*hands, *(FINGERTIPS[h] for h in hands)]
-    t, was_q = frames.time[rows], frames.q[rows]
-    was_p = _sites(skel, frames, rows, was_q, names)
+    t, was = frames.time[rows], Body.of(frames, rows)
+    was_p = _sites(skel, was, names)
     n = len(hands)
     before = _worst(t, was_p[:, :n], fps)
     if before >= RETIME_FROM:
@@ -160,27 +229,73 @@ def reach_again(ir: MotionIR, m: Movement, fps: float, held: list[Carry]) -> boo
     cols = sorted({d for h in hands for d in arm_dofs(skel, h) if skel.dof_names[d] in keyed})
     if not cols:
         return False
-    q = retimed(was_q, t, was_p[:, :n], cols)
-    p = _sites(skel, frames, rows, q, names)
-    if _worst(t, p[:, :n], fps) < before + RETIME_GAIN:
-        return False
-    # one bell over a path that crept part of the way turns the joints faster at its peak:
-    # no faster than pace lets a reach (or than the reach already did), nor arriving faster
-    if _fastest(t, q, cols) > max(_fastest(t, was_q, cols), PEAK_JOINT_SPEED):
-        return False
-    if _arrival(t, p[:, :n], fps) > max(_arrival(t, was_p[:, :n], fps), CONTACT_SPEED):
-        return False
     sides = tuple(sorted({h[0] for h in hands}))
-    was = float(_depths(skel, frames, rows, was_q, sides).max())
-    if float(_depths(skel, frames, rows, q, sides).max()) > (
-        was + DEEPER_INSIDE if was > 0.0 else DEEPER
-    ):
+    check = Check(skel, ir.ground, fps, t, was, names, was_p, n, sides, before)
+    together = any(c.start < m.end - EPS and c.end > m.start + EPS for c in held)
+    tries: list[tuple[Body, list[int]]] = []
+    if not together:
+        tries.append((was.with_q(retimed(was.q, t, was_p[:, :n], cols)), cols))
+    # where the trunk, the pelvis or the other arm made the bend, the whole body runs again
+    if _warpable(ir, m):
+        moving = np.flatnonzero(np.ptp(was.q, axis=0) > 0.0).tolist()
+        tries.append((warped(was, t, was_p[:, :n], cols), moving))
+    best: tuple[float, Body] | None = None
+    for body, checked in tries:
+        score = check.passes(body, checked)
+        if score is None or (best is not None and score <= best[0]):
+            continue
+        if body.root_position is not was.root_position and _feet_moved(skel, body) > (
+            _feet_moved(skel, was) + FEET_SLIP
+        ):
+            continue
+        best = (score, body)
+    if best is None:
         return False
-    # no fingertip lower than it was, or than the ground
-    if float(p[:, n:, 1].min()) < min(float(was_p[:, n:, 1].min()), ir.ground) - EPS:
-        return False
-    frames.q[rows] = q
+    body = best[1]
+    frames.q[rows], frames.root_position[rows] = body.q, body.root_position
+    frames.root_rotation[rows] = body.root_rotation
     return True
+
+
+@dataclass(frozen=True)
+class Check:
+    """What a re-timed reach must keep (the module docstring), against the reach as it was."""
+
+    skel: object
+    ground: float
+    fps: float
+    t: FloatArray
+    was: Body
+    names: list[str]  # the hands, then their fingertips
+    was_p: FloatArray  # (N, len(names), 3)
+    n: int  # hands
+    sides: tuple[str, ...]
+    before: float  # the hands' worst LDLJ as they were
+
+    def passes(self, body: Body, cols: list[int]) -> float | None:
+        """The re-timed hands' worst LDLJ where ``body`` keeps all of it (``cols``: the
+        joints whose speed is judged), else None."""
+        t, n, fps = self.t, self.n, self.fps
+        p = _sites(self.skel, body, self.names)
+        score = _worst(t, p[:, :n], fps)
+        if score < self.before + RETIME_GAIN:
+            return None
+        # one bell over a path that crept part of the way turns the joints faster at its
+        # peak: no faster than pace lets a reach (or than the reach already did), nor arriving
+        # faster
+        if _fastest(t, body.q, cols) > max(_fastest(t, self.was.q, cols), PEAK_JOINT_SPEED):
+            return None
+        if _arrival(t, p[:, :n], fps) > max(_arrival(t, self.was_p[:, :n], fps), CONTACT_SPEED):
+            return None
+        was = float(_depths(self.skel, self.was, self.sides).max())
+        if float(_depths(self.skel, body, self.sides).max()) > (
+            was + DEEPER_INSIDE if was > 0.0 else DEEPER
+        ):
+            return None
+        # no fingertip lower than it was, or than the ground
+        if float(p[:, n:, 1].min()) < min(float(self.was_p[:, n:, 1].min()), self.ground) - EPS:
+            return None
+        return score
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

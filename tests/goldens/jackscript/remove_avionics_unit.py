@@ -92,679 +92,649 @@ def remove_avionics_unit():
         'left_ankle': (7.142, 0.421),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
-    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
-    # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
     human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
+    # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
+    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     human.KeyRoot(1.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (2.865, 0.0, 0.0),
+        'neck': (-0.021, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (2.865, 0.0, 0.0),
         'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
         'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (-6.498, 0.0, 0.0), 'head': (-5.508, 0.0)})
-    human.KeyJoints(1.5, {'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0)})
+    human.KeyJoints(1.4, {'neck': (-6.466, 0.0, 0.0), 'head': (-5.476, 0.0)})
+    human.KeyJoints(1.5, {'neck': (-16.592, 0.0, 0.0), 'head': (-14.125, 0.0)})
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
-    human.LookAt((0.0, 178.0, 100.0), start=1.560423, duration=1.833461)
+    human.LookAt((0.0, 178.0, 100.0), start=1.560423, duration=1.759618)
     human.KeyJoints(1.6, {
-        'spine_lumbar': (0.001, -0.001, -0.004), 'spine_thoracic': (0.004, 0.0, -0.008),
-        'neck': (-20.079, -0.039, 0.129), 'head': (-17.277, 0.0), 'right_clavicle': (0.008, -0.004),
-        'right_shoulder': (8.593, 5.778, 11.444), 'right_elbow': (34.371, 17.186),
-        'left_clavicle': (0.008, 0.003), 'left_shoulder': (8.631, 5.732, 11.457),
-        'left_elbow': (34.377, 17.163), 'left_wrist': (-0.002, -0.001),
+        'spine_lumbar': (0.01, 0.001, 0.0), 'spine_thoracic': (0.0, 0.0, -0.002),
+        'neck': (-20.107, -0.01, 0.033), 'head': (-17.306, 0.0), 'right_clavicle': (0.012, -0.003),
+        'right_shoulder': (8.594, 5.783, 11.472), 'right_elbow': (34.366, 17.198),
+        'left_clavicle': (0.012, -0.004), 'left_shoulder': (8.593, 5.781, 11.481),
+        'left_elbow': (34.365, 17.213),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (0.049, -0.039, -0.141), 'spine_thoracic': (0.128, 0.011, -0.283),
-        'neck': (-20.535, -0.387, 1.251), 'head': (-17.771, 0.0), 'right_clavicle': (0.262, -0.141),
-        'right_shoulder': (8.558, 7.345, 10.957), 'right_elbow': (34.165, 17.108),
-        'left_clavicle': (0.282, 0.106), 'left_shoulder': (9.844, 5.803, 11.378),
-        'left_elbow': (34.354, 16.318), 'left_wrist': (-0.066, -0.02),
+        'spine_lumbar': (0.321, 0.03, 0.003), 'spine_thoracic': (0.007, -0.012, -0.074),
+        'neck': (-20.917, -0.098, 0.318), 'head': (-18.158, 0.0), 'right_clavicle': (0.388, -0.115),
+        'right_shoulder': (8.594, 7.498, 11.878), 'right_elbow': (33.979, 17.506),
+        'right_wrist': (0.024, -0.025), 'left_clavicle': (0.388, -0.131),
+        'left_shoulder': (8.56, 7.461, 12.201), 'left_elbow': (33.958, 17.997),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (0.215, -0.171, -0.617), 'spine_thoracic': (0.56, 0.046, -1.234),
-        'neck': (-21.337, -0.911, 2.954), 'head': (-18.659, -0.003),
-        'right_clavicle': (1.143, -0.617), 'right_shoulder': (8.434, 12.775, 9.268),
-        'right_elbow': (33.45, 16.835), 'right_wrist': (0.017, -0.042),
-        'left_clavicle': (1.231, 0.464), 'left_shoulder': (14.048, 6.05, 11.106),
-        'left_elbow': (34.276, 13.391), 'left_wrist': (-0.29, -0.086),
+        'spine_lumbar': (1.385, 0.129, 0.012), 'spine_thoracic': (0.028, -0.053, -0.321),
+        'neck': (-22.228, -0.23, 0.745), 'head': (-19.63, -0.001),
+        'right_clavicle': (1.673, -0.496), 'right_shoulder': (8.593, 13.355, 13.266),
+        'right_elbow': (32.658, 18.558), 'left_clavicle': (1.673, -0.565),
+        'left_shoulder': (8.447, 13.196, 14.656), 'left_elbow': (32.57, 20.675),
+        'left_wrist': (0.048, 0.049),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (0.536, -0.423, -1.524), 'spine_thoracic': (1.383, 0.114, -3.049),
-        'neck': (-22.882, -1.611, 5.231), 'head': (-19.699, -0.009),
-        'right_clavicle': (2.824, -1.524), 'right_shoulder': (8.199, 23.139, 6.044),
-        'right_elbow': (32.082, 16.314), 'left_clavicle': (3.043, 1.149),
-        'left_shoulder': (22.076, 6.52, 10.585), 'left_elbow': (34.122, 7.805),
-        'left_wrist': (-0.716, -0.213),
+        'spine_lumbar': (3.374, 0.314, 0.028), 'spine_thoracic': (0.071, -0.128, -0.78),
+        'neck': (-26.398, -0.407, 1.305), 'right_clavicle': (4.068, -1.206),
+        'right_shoulder': (8.59, 24.274, 15.854), 'right_elbow': (30.197, 20.518),
+        'right_wrist': (0.249, -0.267), 'left_clavicle': (4.069, -1.374),
+        'left_shoulder': (8.234, 23.886, 19.232), 'left_elbow': (29.981, 25.665),
     })
     human.KeyJoints(2.0, {
-        'spine_lumbar': (1.035, -0.789, -2.856), 'spine_thoracic': (2.583, 0.212, -5.712),
-        'neck': (-26.392, -2.325, 7.512), 'head': (-19.521, -0.023),
-        'right_clavicle': (5.3, -2.856), 'right_shoulder': (7.854, 38.345, 1.313),
-        'right_elbow': (30.055, 15.551), 'left_clavicle': (5.701, 2.158),
-        'left_shoulder': (33.897, 7.212, 9.821), 'left_elbow': (33.879, -0.393),
-        'left_wrist': (-1.342, -0.399),
+        'spine_lumbar': (6.23, 0.575, 0.055), 'spine_thoracic': (0.143, -0.234, -1.431),
+        'neck': (-31.857, -0.599, 1.897), 'head': (-19.134, -0.014),
+        'right_clavicle': (7.472, -2.216), 'right_shoulder': (8.583, 39.793, 19.53),
+        'right_elbow': (26.698, 23.303), 'left_clavicle': (7.472, -2.526),
+        'left_shoulder': (7.925, 39.08, 25.734), 'left_elbow': (26.302, 32.756),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (1.764, -1.241, -4.533), 'spine_thoracic': (4.057, 0.331, -9.066),
-        'neck': (-30.605, -2.999, 9.662), 'head': (-19.459, -0.058),
-        'right_clavicle': (8.438, -4.533), 'right_shoulder': (7.424, 57.475, -4.642),
-        'right_elbow': (27.439, 14.589), 'right_wrist': (0.129, -0.318),
-        'left_clavicle': (9.049, 3.449), 'left_shoulder': (48.914, 8.077, 8.857),
-        'left_elbow': (33.495, -10.714), 'left_wrist': (-2.132, -0.633),
+        'spine_lumbar': (9.763, 0.88, 0.096), 'spine_thoracic': (0.278, -0.355, -2.207),
+        'neck': (-38.024, -0.766, 2.365), 'right_clavicle': (11.576, -3.439),
+        'right_shoulder': (8.557, 58.529, 23.962), 'right_elbow': (22.474, 26.661),
+        'left_clavicle': (11.576, -3.924), 'left_shoulder': (7.529, 57.429, 33.575),
+        'left_elbow': (21.857, 41.307),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (2.902, -1.71, -6.437), 'spine_thoracic': (5.579, 0.45, -12.873),
-        'neck': (-35.143, -3.438, 10.983), 'right_clavicle': (12.054, -6.437),
-        'right_shoulder': (6.951, 79.142, -11.404), 'right_elbow': (24.29, 13.497),
-        'left_clavicle': (12.851, 4.971), 'left_shoulder': (66.365, 9.023, 7.763),
-        'left_elbow': (32.781, -22.434),
+        'spine_lumbar': (13.71, 1.165, 0.179), 'spine_thoracic': (0.6, -0.457, -2.999),
+        'neck': (-44.625, -0.89, 2.64), 'head': (-18.426, -0.074),
+        'right_clavicle': (15.969, -4.771), 'right_shoulder': (8.46, 78.63, 28.705),
+        'right_elbow': (17.927, 30.257), 'left_clavicle': (15.969, -5.465),
+        'left_shoulder': (7.039, 77.149, 41.967), 'left_elbow': (17.069, 50.46),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (4.892, -2.063, -8.433), 'spine_thoracic': (6.691, 0.519, -16.866),
-        'neck': (-39.782, -3.629, 11.428), 'right_shoulder': (6.507, 101.689, -18.49),
-        'right_elbow': (20.572, 12.351), 'left_clavicle': (16.842, 6.705),
-        'left_shoulder': (85.661, 9.864, 6.627), 'left_elbow': (31.212, -34.726),
+        'spine_lumbar': (17.742, 1.314, 0.367), 'spine_thoracic': (1.401, -0.472, -3.649),
+        'neck': (-49.49, -0.798, 2.777), 'head': (-19.97, 0.003),
+        'right_clavicle': (20.207, -6.128), 'right_shoulder': (8.161, 98.112, 33.276),
+        'right_elbow': (13.466, 33.729), 'right_wrist': (1.157, -1.305),
+        'left_clavicle': (20.208, -7.082), 'left_shoulder': (6.406, 96.379, 50.063),
+        'left_elbow': (12.364, 59.292), 'left_wrist': (0.558, 0.517),
     })
     human.KeyJoints(2.4, {
-        'spine_lumbar': (8.391, -2.102, -10.372), 'spine_thoracic': (6.711, 0.466, -20.744),
-        'neck': (-44.207, -3.563, 11.019), 'head': (-18.876, -0.253),
-        'right_clavicle': (19.864, -10.372), 'right_shoulder': (6.186, 123.201, -25.362),
-        'right_elbow': (16.192, 11.239), 'right_wrist': (0.359, -0.878),
-        'left_clavicle': (20.721, 8.655), 'left_shoulder': (106.316, 10.32, 5.563),
-        'left_elbow': (27.951, -46.667), 'left_wrist': (-4.823, -1.458),
+        'spine_lumbar': (21.429, 1.204, 0.735), 'spine_thoracic': (3.001, -0.323, -3.99),
+        'neck': (-55.406, -0.553, 2.789), 'head': (-19.554, 0.003),
+        'right_clavicle': (23.873, -7.443), 'right_shoulder': (7.51, 115.092, 37.22),
+        'right_elbow': (9.462, 36.735), 'right_wrist': (1.257, -1.496),
+        'left_clavicle': (23.874, -8.733), 'left_shoulder': (5.584, 113.376, 57.064),
+        'left_elbow': (8.133, 66.933),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (13.584, -1.71, -12.098), 'spine_thoracic': (5.246, 0.247, -24.196),
-        'neck': (-47.39, -3.083, 9.936), 'head': (-19.254, -0.132),
-        'right_clavicle': (23.52, -12.098), 'right_shoulder': (6.056, 141.814, -31.466),
-        'right_elbow': (11.31, 10.248), 'left_clavicle': (24.178, 10.734),
-        'left_shoulder': (127.218, 10.201, 4.679), 'left_elbow': (22.654, -57.298),
-        'left_wrist': (-5.54, -1.709),
+        'spine_lumbar': (24.364, 0.858, 1.237), 'spine_thoracic': (5.194, -0.031, -4.011),
+        'neck': (-59.975, 4.515, 5.005), 'head': (-19.987, -5.406),
+        'right_clavicle': (26.681, -8.604), 'right_shoulder': (6.588, 128.214, 40.23),
+        'right_elbow': (6.238, 39.039), 'left_clavicle': (26.681, -10.274),
+        'left_shoulder': (4.671, 126.772, 62.424), 'left_elbow': (4.719, 72.785),
+        'left_wrist': (0.682, 0.4),
     })
     human.KeyJoints(2.6, {
-        'spine_lumbar': (19.357, -1.053, -13.473), 'spine_thoracic': (2.88, -0.065, -26.945),
-        'neck': (-49.573, -2.317, 8.272), 'head': (-19.909, 0.001),
-        'right_clavicle': (26.55, -13.473), 'right_shoulder': (6.078, 156.208, -36.317),
-        'right_elbow': (6.66, 9.46), 'left_clavicle': (26.935, 12.661),
-        'left_shoulder': (145.842, 9.675, 4.028), 'left_elbow': (16.511, -65.77),
-        'left_wrist': (-6.065, -1.914),
+        'spine_lumbar': (26.37, 0.485, 1.693), 'spine_thoracic': (7.187, 0.26, -3.896),
+        'neck': (-60.0, 23.483, 16.671), 'head': (-20.0, -11.232),
+        'right_clavicle': (28.565, -9.467), 'right_shoulder': (5.739, 137.081, 42.244),
+        'right_elbow': (3.989, 40.588), 'left_clavicle': (28.565, -11.459),
+        'left_shoulder': (3.908, 135.967, 66.02), 'left_elbow': (2.334, 76.714),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
-        'spine_lumbar': (23.881, -0.474, -14.395), 'spine_thoracic': (0.812, -0.33, -28.791),
-        'neck': (-52.071, -1.402, 5.935), 'right_clavicle': (28.629, -14.395),
-        'right_shoulder': (6.143, 165.697, -39.569), 'right_elbow': (3.239, 8.931),
-        'right_wrist': (0.576, -1.488), 'left_clavicle': (28.787, 14.06),
-        'left_shoulder': (159.124, 9.147, 3.613), 'left_elbow': (11.619, -71.458),
-        'left_wrist': (-6.399, -2.052),
+        'spine_lumbar': (27.483, 0.246, 1.972), 'spine_thoracic': (8.407, 0.443, -3.802),
+        'neck': (-60.0, 33.745, 25.335), 'head': (-20.0, -11.157),
+        'right_clavicle': (29.605, -9.963), 'right_shoulder': (5.218, 141.988, 43.354),
+        'right_elbow': (2.728, 41.442), 'right_wrist': (1.168, -1.678),
+        'left_clavicle': (29.605, -12.147), 'left_shoulder': (3.453, 141.087, 68.004),
+        'left_elbow': (0.996, 78.882),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (26.291, -0.156, -14.865), 'spine_thoracic': (-0.32, -0.474, -29.731),
-        'neck': (-54.368, -0.66, 3.447), 'right_clavicle': (29.694, -14.865),
-        'right_shoulder': (6.185, 170.501, -41.224), 'right_elbow': (1.449, 8.661),
-        'left_clavicle': (29.73, 14.79), 'left_shoulder': (166.015, 8.849, 3.405),
-        'left_elbow': (9.002, -74.355), 'left_wrist': (-6.565, -2.123),
-    })
-    human.KeyJoints(2.9, {
-        'spine_lumbar': (26.967, -0.066, -14.996), 'spine_thoracic': (-0.64, -0.514, -29.993),
-        'neck': (-56.851, -0.095, 1.024), 'head': (-19.525, 0.003),
-        'right_clavicle': (29.992, -14.996), 'right_shoulder': (6.197, 171.84, -41.686),
-        'right_elbow': (0.947, 8.586), 'right_wrist': (0.611, -1.593),
-        'left_clavicle': (29.993, 14.994), 'left_shoulder': (167.943, 8.765, 3.347),
-        'left_elbow': (8.267, -75.163),
+        'spine_lumbar': (27.876, 0.159, 2.073), 'spine_thoracic': (8.845, 0.509, -3.767),
+        'neck': (-60.0, 33.75, 27.419), 'head': (-20.0, -10.695),
+        'right_clavicle': (29.972, -10.14), 'right_shoulder': (5.03, 143.719, 43.746),
+        'right_elbow': (2.282, 41.744), 'left_clavicle': (29.972, -12.392),
+        'left_shoulder': (3.29, 142.896, 68.704), 'left_elbow': (0.523, 79.647),
+        'left_wrist': (0.715, 0.192),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
+    human.KeyJoints(2.9, {
+        'spine_lumbar': (27.904, 0.152, 2.085), 'spine_thoracic': (8.901, 0.516, -3.76),
+        'neck': (-60.0, 33.75, 26.121), 'right_clavicle': (30.0, -10.184),
+        'right_shoulder': (5.012, 143.843, 43.776), 'right_elbow': (2.239, 41.767),
+        'right_wrist': (1.152, -1.682), 'left_clavicle': (30.0, -12.436),
+        'left_shoulder': (3.276, 143.032, 68.758),
+    })
     human.KeyJoints(3.0, {
-        'neck': (-57.993, 0.092, 0.051), 'right_elbow': (0.916, 8.584),
-        'right_wrist': (0.603, -1.578), 'left_shoulder': (168.079, 8.75, 3.346),
-        'left_elbow': (8.1, -75.184), 'left_wrist': (-6.565, -2.126),
+        'spine_lumbar': (27.813, 0.116, 2.268), 'spine_thoracic': (9.806, 0.589, -3.569),
+        'head': (-20.0, -11.067), 'right_clavicle': (30.0, -11.495),
+        'right_shoulder': (4.838, 143.446, 43.778), 'right_elbow': (1.866, 41.766),
+        'right_wrist': (1.063, -1.498), 'left_clavicle': (30.0, -13.475),
+        'left_shoulder': (3.241, 142.854, 68.758), 'left_wrist': (0.623, 0.159),
     })
     human.KeyJoints(3.1, {
-        'spine_thoracic': (-0.717, -0.599, -30.0), 'right_shoulder': (6.248, 171.837, -41.698),
-        'right_elbow': (0.722, 8.585), 'right_wrist': (0.515, -1.394),
-        'left_shoulder': (169.038, 8.607, 3.349), 'left_elbow': (6.422, -75.182),
-        'left_wrist': (-5.97, -1.915),
+        'spine_lumbar': (27.679, 0.057, 2.66), 'spine_thoracic': (11.313, 0.637, -3.177),
+        'neck': (-60.0, 33.75, 27.599), 'head': (-20.0, -10.816), 'right_clavicle': (30.0, -13.899),
+        'right_shoulder': (4.544, 142.834, 43.781), 'right_elbow': (1.343, 41.765),
+        'right_wrist': (0.893, -1.192), 'left_clavicle': (30.0, -14.77),
+        'left_shoulder': (3.537, 142.442, 68.759),
     })
     human.KeyJoints(3.2, {
-        'neck': (-58.22, 0.109, -0.044), 'head': (-19.584, 0.003), 'right_elbow': (0.42, 8.585),
-        'right_wrist': (0.349, -1.033), 'left_shoulder': (170.532, 8.404, 3.352),
-        'left_elbow': (3.853, -75.179), 'left_wrist': (-4.647, -1.462),
-    })
-    human.KeyJoints(3.3, {
-        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.547, -30.0),
-        'neck': (-58.558, 0.114, -0.07), 'right_shoulder': (6.523, 171.769, -41.698),
-        'right_elbow': (0.293, 8.586), 'right_wrist': (0.269, -0.856),
-        'left_shoulder': (171.161, 8.326, 3.353), 'left_elbow': (2.793, -75.178),
-        'left_wrist': (-3.954, -1.229),
+        'spine_lumbar': (27.616, 0.037, 2.88), 'spine_thoracic': (11.9, 0.639, -2.959),
+        'neck': (-60.0, 33.75, 28.231), 'head': (-20.0, -10.318), 'right_clavicle': (30.0, -14.932),
+        'right_shoulder': (4.397, 142.621, 43.781), 'right_elbow': (1.168, 41.764),
+        'right_wrist': (0.813, -1.07), 'left_clavicle': (30.0, -14.989),
+        'left_shoulder': (3.833, 142.246, 68.76), 'left_wrist': (0.46, 0.188),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=3.321883, duration=0.072)
+    human.Grasp('left_hand', 'open', start=3.24804, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
+    human.Grasp('right_hand', 'open', start=3.24804, duration=0.072)
+    human.KeyJoints(3.3, {
+        'neck': (-60.0, 33.75, 28.554), 'head': (-20.0, -11.25), 'left_elbow': (0.291, 79.705),
+    })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
-    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.447533)
-    human.KeyJoints(3.4, {'neck': (-58.616, 0.114, -0.07)})
-    human.KeyJoints(3.5, {'neck': (-58.342, 0.1, 0.019)})
-    human.KeyJoints(3.6, {'head': (-19.471, 0.001)})
+    human.LookAt((0.0, 172.0, 98.0), start=3.32004, duration=0.426209)
+    human.KeyJoints(3.5, {'neck': (-60.0, 33.75, 28.451), 'head': (-20.0, -11.131)})
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
-    human.KeyJoints(3.7, {
-        'spine_thoracic': (-0.555, -0.55, -30.0), 'neck': (-57.139, 0.007, 0.412),
-        'right_shoulder': (6.522, 171.751, -41.698), 'left_shoulder': (171.113, 8.39, 3.327),
-        'left_elbow': (2.787, -75.174), 'left_wrist': (-3.942, -1.226),
+    human.KeyJoints(3.6, {
+        'spine_lumbar': (27.612, 0.035, 2.893), 'spine_thoracic': (11.934, 0.639, -2.947),
+        'right_clavicle': (30.0, -14.993), 'right_shoulder': (4.388, 142.608, 43.781),
+        'left_clavicle': (30.0, -15.0), 'left_shoulder': (3.852, 142.237, 68.751),
+        'left_elbow': (0.291, 79.698), 'left_wrist': (0.457, 0.19),
     })
-    human.KeyJoints(3.8, {
-        'spine_lumbar': (27.289, 0.129, -14.987), 'spine_thoracic': (-0.308, -0.659, -30.0),
-        'neck': (-56.727, -0.065, 0.546), 'head': (-19.351, 0.0),
-        'right_shoulder': (6.448, 171.216, -41.684), 'right_wrist': (0.322, -0.887),
-        'left_clavicle': (30.0, 14.97), 'left_shoulder': (169.455, 10.371, 2.513),
-        'left_elbow': (2.915, -75.064), 'left_wrist': (-3.798, -1.206),
+    human.KeyJoints(3.7, {
+        'spine_lumbar': (27.645, -0.089, 2.836), 'spine_thoracic': (11.974, 0.456, -3.186),
+        'neck': (-60.0, 33.75, 28.133), 'head': (-20.0, -10.771), 'right_clavicle': (30.0, -14.866),
+        'right_shoulder': (4.38, 142.27, 43.79), 'left_clavicle': (30.0, -14.916),
+        'left_shoulder': (3.991, 142.881, 66.523), 'left_elbow': (0.294, 77.775),
+        'left_wrist': (0.343, 0.245),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
-    human.LookAt((0.0, 165.0, 75.0), start=3.841417, duration=3.04601)
+    human.LookAt((0.0, 165.0, 75.0), start=3.74625, duration=2.767334)
+    human.KeyJoints(3.8, {
+        'spine_lumbar': (27.788, -0.625, 2.589), 'spine_thoracic': (12.147, -0.334, -4.221),
+        'neck': (-60.0, 33.143, 26.938), 'head': (-20.0, -10.238),
+        'right_clavicle': (30.0, -14.318), 'right_shoulder': (4.344, 140.805, 43.832),
+        'right_wrist': (0.85, -1.022), 'left_clavicle': (30.0, -14.554),
+        'left_shoulder': (4.596, 145.674, 56.868), 'left_elbow': (0.308, 69.444),
+        'left_wrist': (-0.15, 0.483),
+    })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (27.427, 0.082, -14.944), 'spine_thoracic': (0.52, -1.026, -30.0),
-        'neck': (-56.722, -0.362, -0.083), 'head': (-19.354, 0.147),
-        'right_clavicle': (30.0, -14.941), 'right_shoulder': (6.201, 169.422, -41.638),
-        'right_wrist': (0.495, -0.993), 'left_shoulder': (163.896, 17.016, -0.216),
-        'left_elbow': (3.344, -74.693), 'left_wrist': (-3.312, -1.136),
+        'spine_lumbar': (28.067, -1.669, 2.107), 'spine_thoracic': (12.484, -1.875, -6.239),
+        'neck': (-60.0, 29.238, 20.428), 'head': (-20.0, -8.108), 'right_clavicle': (30.0, -13.251),
+        'right_shoulder': (4.274, 137.952, 43.912), 'left_clavicle': (30.0, -13.848),
+        'left_shoulder': (5.773, 151.113, 38.06), 'left_elbow': (0.334, 53.214),
+        'left_wrist': (-1.111, 0.946),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (27.685, -0.004, -14.863), 'spine_thoracic': (2.065, -1.711, -30.0),
-        'neck': (-56.956, -1.673, -3.777), 'head': (-19.404, 0.994),
-        'right_shoulder': (5.741, 166.073, -41.55), 'right_wrist': (0.818, -1.192),
-        'left_clavicle': (29.999, 14.69), 'left_shoulder': (153.517, 29.419, -5.31),
-        'left_elbow': (4.146, -74.002), 'left_wrist': (-2.405, -1.006),
+        'spine_lumbar': (28.457, -3.127, 1.434), 'spine_thoracic': (12.954, -4.026, -9.056),
+        'neck': (-60.0, 22.703, 9.691), 'head': (-20.0, -4.714), 'right_clavicle': (30.0, -11.76),
+        'right_shoulder': (4.177, 133.967, 44.024), 'right_elbow': (1.227, 41.75),
+        'left_shoulder': (7.418, 158.71, 11.79), 'left_elbow': (0.371, 30.546),
+        'left_wrist': (-2.453, 1.593),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (28.064, -0.132, -14.745), 'spine_thoracic': (4.337, -2.717, -30.0),
-        'neck': (-57.349, -3.809, -9.962), 'head': (-19.486, 2.411),
-        'right_shoulder': (5.063, 161.148, -41.423), 'right_elbow': (0.225, 8.567),
-        'right_wrist': (1.294, -1.483), 'left_shoulder': (138.257, 47.657, -12.8),
-        'left_elbow': (5.324, -72.985), 'left_wrist': (-1.072, -0.815),
-    })
-    human.KeyJoints(4.2, {
-        'spine_lumbar': (28.564, -0.301, -14.59), 'spine_thoracic': (7.336, -4.046, -30.0),
-        'neck': (-57.842, -6.465, -17.729), 'head': (-19.589, 4.19),
-        'right_clavicle': (30.0, -14.57), 'right_shoulder': (4.169, 154.648, -41.254),
-        'right_wrist': (1.922, -1.868), 'left_clavicle': (29.998, 14.068),
-        'left_shoulder': (118.114, 71.73, -22.687), 'left_elbow': (6.878, -71.643),
-        'left_wrist': (0.687, -0.563),
-    })
-    human.KeyJoints(4.3, {
-        'neck': (-58.378, -9.337, -26.171), 'left_shoulder': (93.232, 101.468, -34.9),
-    })
-    human.KeyJoints(4.4, {
-        'spine_lumbar': (29.805, -0.718, -14.203), 'spine_thoracic': (14.772, -7.341, -30.0),
-        'neck': (-58.9, -12.122, -34.38), 'head': (-19.811, 8.005),
-        'right_shoulder': (1.952, 138.532, -40.835), 'right_wrist': (3.479, -2.821),
-        'left_clavicle': (29.996, 13.191), 'left_shoulder': (68.174, 131.415, -47.199),
-        'left_elbow': (10.734, -68.316), 'left_wrist': (5.05, 0.062),
+        'spine_lumbar': (28.878, -4.7, 0.709), 'spine_thoracic': (13.462, -6.346, -12.095),
+        'neck': (-60.0, 14.697, -3.4), 'head': (-20.0, -0.628), 'right_clavicle': (30.0, -10.152),
+        'right_shoulder': (4.073, 129.67, 44.144), 'left_clavicle': (30.0, -11.8),
+        'left_shoulder': (9.192, 166.902, -16.539), 'left_elbow': (0.41, 6.1),
+        'left_wrist': (-3.9, 2.291),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
-    human.KeyJoints(4.5, {
-        'spine_lumbar': (30.277, -0.877, -14.056), 'spine_thoracic': (17.605, -8.596, -30.0),
-        'neck': (-59.349, -14.514, -41.448), 'head': (-19.905, 9.625),
-        'right_clavicle': (30.0, -14.01), 'right_shoulder': (1.107, 132.39, -40.675),
-        'right_wrist': (4.072, -3.185), 'left_clavicle': (29.995, 12.856),
-        'left_shoulder': (49.143, 154.16, -56.541), 'left_elbow': (12.203, -67.048),
-        'left_wrist': (6.712, 0.3),
+    human.KeyJoints(4.2, {
+        'spine_lumbar': (29.224, -5.996, 0.111), 'spine_thoracic': (13.88, -8.257, -14.598),
+        'neck': (-60.0, 6.376, -16.97), 'head': (-20.0, 3.581), 'right_clavicle': (30.0, -8.827),
+        'right_shoulder': (3.986, 126.131, 44.244), 'left_clavicle': (30.0, -10.925),
+        'left_shoulder': (10.653, 173.65, -39.872), 'left_elbow': (0.443, -14.034),
+        'left_wrist': (-5.092, 2.866),
     })
-    human.KeyJoints(4.6, {
-        'spine_lumbar': (30.588, -0.982, -13.959), 'spine_thoracic': (19.469, -9.422, -30.0),
-        'neck': (-59.667, -16.211, -46.468), 'head': (-19.972, 10.775),
-        'right_shoulder': (0.552, 128.35, -40.57), 'right_wrist': (4.462, -3.424),
-        'left_clavicle': (29.994, 12.636), 'left_shoulder': (36.626, 169.119, -62.685),
-        'left_elbow': (13.169, -66.214), 'left_wrist': (7.805, 0.457),
+    human.KeyJoints(4.3, {
+        'spine_lumbar': (29.443, -6.815, -0.267), 'spine_thoracic': (14.144, -9.466, -16.181),
+        'neck': (-60.0, -1.1, -29.145), 'head': (-20.0, 7.342), 'right_clavicle': (30.0, -7.989),
+        'right_shoulder': (3.932, 123.891, 44.307), 'right_wrist': (1.24, -0.64),
+        'left_clavicle': (30.0, -10.371), 'left_shoulder': (11.577, 177.92, -54.638),
+        'left_elbow': (0.463, -26.776), 'left_wrist': (-5.846, 3.23),
     })
-    human.KeyJoints(4.7, {
-        'spine_lumbar': (30.753, -1.038, -13.908), 'spine_thoracic': (20.46, -9.861, -30.0),
-        'neck': (-59.799, -16.908, -48.532), 'head': (-20.0, 11.248),
-        'right_shoulder': (0.256, 126.201, -40.514), 'right_elbow': (0.004, 8.505),
-        'right_wrist': (4.67, -3.551), 'left_shoulder': (29.965, 177.08, -65.954),
-        'left_elbow': (13.683, -65.77), 'left_wrist': (8.387, 0.54),
-    })
-    human.KeyJoints(4.8, {
-        'spine_thoracic': (20.762, -9.995, -30.0), 'right_clavicle': (30.0, -13.838),
-        'right_shoulder': (0.166, 125.547, -40.497), 'left_clavicle': (29.994, 12.484),
-        'left_shoulder': (27.938, 179.503, -66.949), 'left_elbow': (13.84, -65.635),
-        'left_wrist': (8.564, 0.565),
+    human.KeyJoints(4.4, {
+        'spine_lumbar': (29.532, -7.145, -0.419), 'spine_thoracic': (14.25, -9.953, -16.819),
+        'neck': (-60.0, -6.574, -38.05), 'head': (-20.0, 10.086), 'right_clavicle': (30.0, -7.652),
+        'right_shoulder': (3.91, 122.989, 44.332), 'left_clavicle': (30.0, -10.148),
+        'left_shoulder': (11.949, 179.639, -60.58), 'left_elbow': (0.472, -31.904),
+        'left_wrist': (-6.15, 3.376),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=4.845791, duration=0.072)
+    human.Grasp('left_hand', 'close', start=4.471948, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=4.845791, duration=0.072)
-    human.KeyJoints(4.9, {
-        'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.799, -16.911, -48.542), 'right_clavicle': (30.0, -13.838),
-        'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
-        'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
+    human.Grasp('right_hand', 'close', start=4.471948, duration=0.072)
+    human.KeyJoints(4.5, {
+        'spine_lumbar': (29.54, -7.177, -0.434), 'spine_thoracic': (14.261, -10.0, -16.88),
+        'neck': (-60.0, -8.888, -41.811), 'head': (-20.0, 11.243), 'right_clavicle': (30.0, -7.619),
+        'right_shoulder': (3.908, 122.903, 44.335), 'right_wrist': (1.263, -0.618),
+        'left_clavicle': (30.0, -10.126), 'left_shoulder': (11.985, 179.805, -61.153),
+        'left_elbow': (0.472, -32.398),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
-    human.KeyJoints(5.0, {
-        'spine_lumbar': (30.987, -1.437, -13.853), 'spine_thoracic': (19.565, -9.331, -29.077),
-        'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.744, -13.881),
-        'right_shoulder': (0.447, 127.277, -40.508), 'right_elbow': (0.367, 8.515),
-        'right_wrist': (5.047, -3.91), 'left_clavicle': (29.994, 12.52),
-        'left_shoulder': (27.682, 179.393, -66.938), 'left_wrist': (8.598, 0.548),
+    human.KeyJoints(4.6, {
+        'spine_lumbar': (29.755, -7.288, -0.523), 'spine_thoracic': (13.837, -9.679, -16.748),
+        'neck': (-58.885, -10.859, -44.267), 'head': (-20.0, 9.478),
+        'right_clavicle': (29.525, -7.687), 'right_shoulder': (4.105, 123.571, 44.335),
+        'right_elbow': (1.294, 41.733), 'right_wrist': (1.358, -0.718),
+        'left_clavicle': (30.0, -10.207), 'left_shoulder': (12.123, 179.678, -61.153),
+        'left_wrist': (-6.238, 3.414),
     })
-    human.KeyJoints(5.1, {
-        'spine_lumbar': (32.122, -3.871, -13.588), 'spine_thoracic': (11.806, -5.044, -23.085),
-        'right_clavicle': (20.706, -14.155), 'right_shoulder': (2.264, 138.56, -40.577),
-        'right_elbow': (2.727, 8.586), 'right_wrist': (7.049, -5.959),
-        'left_shoulder': (26.51, 178.007, -66.627), 'left_elbow': (13.801, -65.596),
-        'left_wrist': (8.768, 0.42),
+    human.KeyJoints(4.7, {
+        'spine_lumbar': (32.581, -8.742, -1.707), 'spine_thoracic': (8.235, -5.432, -14.983),
+        'neck': (-53.359, -20.561, -56.333), 'head': (-20.0, 0.693),
+        'right_clavicle': (23.248, -8.593), 'right_shoulder': (6.717, 132.434, 44.343),
+        'right_wrist': (2.61, -2.039), 'left_clavicle': (30.0, -11.278),
+        'left_shoulder': (13.95, 177.956, -61.154), 'left_elbow': (0.361, -32.426),
+        'left_wrist': (-7.025, 3.734),
     })
-    human.KeyJoints(5.2, {
-        'spine_lumbar': (32.881, -7.105, -12.728), 'spine_thoracic': (-0.406, 1.465, -12.338),
-        'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (9.049, -14.443),
-        'right_shoulder': (4.748, 156.769, -40.651), 'right_elbow': (6.44, 8.696),
-        'right_wrist': (10.297, -9.252), 'left_clavicle': (29.998, 13.032),
-        'left_shoulder': (24.343, 173.949, -65.971), 'left_elbow': (13.067, -65.507),
-        'left_wrist': (8.858, -0.002),
+    human.KeyJoints(4.8, {
+        'spine_lumbar': (37.031, -10.921, -3.747), 'spine_thoracic': (-1.338, 1.967, -11.564),
+        'neck': (-47.504, -30.841, -69.117), 'head': (-20.0, -8.616),
+        'right_clavicle': (12.668, -10.523), 'right_shoulder': (11.172, 148.209, 44.362),
+        'right_elbow': (0.637, 41.825), 'right_wrist': (4.792, -4.36),
+        'left_clavicle': (30.0, -13.14), 'left_shoulder': (16.96, 173.958, -61.16),
+        'left_wrist': (-8.361, 4.24),
+    })
+    human.KeyJoints(4.9, {
+        'spine_lumbar': (34.743, -8.748, -4.684), 'spine_thoracic': (-4.222, 5.508, -8.055),
+        'neck': (-47.548, -33.75, -70.607), 'head': (-20.0, -11.25),
+        'right_clavicle': (11.044, -13.011), 'right_shoulder': (12.429, 159.297, 44.393),
+        'right_wrist': (5.879, -5.666), 'left_clavicle': (29.999, -14.062),
+        'left_shoulder': (16.797, 165.938, -61.22), 'left_elbow': (0.044, -32.603),
+        'left_wrist': (-8.716, 3.977),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
-    human.KeyJoints(5.3, {
-        'spine_lumbar': (26.841, -4.427, -10.239), 'spine_thoracic': (-4.296, 1.876, -2.17),
-        'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (12.041, -13.509),
-        'right_shoulder': (3.081, 164.918, -40.403), 'right_elbow': (7.338, 8.719),
-        'right_wrist': (12.002, -10.794), 'left_clavicle': (30.0, 12.419),
-        'left_shoulder': (21.391, 164.907, -65.005), 'left_elbow': (8.872, -65.3),
-        'left_wrist': (7.817, -1.12),
+    human.KeyJoints(5.0, {
+        'spine_lumbar': (31.01, -6.156, -4.495), 'spine_thoracic': (-2.028, 4.777, -7.137),
+        'neck': (-54.966, -33.75, -55.083), 'right_clavicle': (14.691, -13.793),
+        'right_shoulder': (11.338, 160.461, 44.405), 'right_elbow': (2.902, 41.915),
+        'right_wrist': (5.708, -5.588), 'left_clavicle': (30.0, -13.913),
+        'left_shoulder': (15.303, 162.102, -61.262), 'left_wrist': (-8.378, 3.548),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
-    human.KeyJoints(5.4, {
-        'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
-        'neck': (-57.573, -19.113, -23.323), 'right_clavicle': (14.226, -13.216),
-        'right_shoulder': (2.338, 164.98, -40.325), 'right_elbow': (7.133, 8.713),
-        'left_clavicle': (30.0, 12.219), 'left_shoulder': (20.833, 163.058, -64.828),
-        'left_elbow': (7.836, -65.257), 'left_wrist': (7.527, -1.361),
+    human.KeyJoints(5.1, {'neck': (-57.46, -33.75, -48.617)})
+    human.KeyJoints(5.5, {'spine_thoracic': (-1.935, 4.652, -7.162)})
+    human.KeyJoints(5.6, {
+        'spine_lumbar': (30.933, -6.032, -4.522), 'left_clavicle': (30.0, -14.017),
+        'left_shoulder': (15.198, 162.099, -61.262),
     })
-    human.KeyJoints(5.5, {'right_wrist': (12.09, -10.832)})
     human.KeyJoints(5.7, {
-        'spine_lumbar': (25.083, -3.258, -9.694), 'spine_thoracic': (-3.88, 1.122, -0.709),
+        'spine_thoracic': (-1.803, 4.464, -7.204), 'right_clavicle': (14.597, -13.908),
+        'right_shoulder': (11.315, 160.501, 44.409), 'left_clavicle': (30.0, -14.11),
+        'left_elbow': (0.024, -32.659),
+    })
+    human.KeyJoints(5.8, {
+        'spine_thoracic': (-1.644, 4.238, -7.256), 'neck': (-57.237, -33.75, -49.179),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (24.957, -3.063, -9.728), 'spine_thoracic': (-3.743, 0.852, -0.721),
+        'spine_lumbar': (30.787, -5.774, -4.687), 'left_clavicle': (30.0, -14.635),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (24.845, -2.888, -9.77), 'spine_thoracic': (-3.622, 0.612, -0.735),
-        'right_clavicle': (14.115, -13.323), 'right_shoulder': (2.246, 165.103, -40.321),
-        'left_clavicle': (30.0, 12.326), 'left_shoulder': (20.93, 163.081, -64.822),
+        'right_clavicle': (14.248, -14.073), 'left_shoulder': (14.954, 162.143, -61.259),
     })
-    human.KeyJoints(6.1, {
-        'spine_lumbar': (24.661, -2.602, -9.877), 'spine_thoracic': (-3.423, 0.217, -0.772),
-        'right_elbow': (7.233, 8.708),
-    })
-    human.KeyJoints(6.2, {'spine_thoracic': (-3.316, 0.005, -0.802)})
-    human.KeyJoints(6.3, {
-        'spine_lumbar': (24.513, -2.369, -10.029), 'right_clavicle': (13.789, -13.641),
-        'right_shoulder': (2.139, 165.47, -40.316), 'left_clavicle': (30.0, 12.644),
-    })
-    human.KeyJoints(6.4, {'left_shoulder': (21.269, 163.162, -64.814)})
-    human.KeyJoints(6.5, {'spine_thoracic': (-3.21, -0.206, -0.853)})
-    human.KeyJoints(6.6, {'neck': (-57.56, -19.126, -23.275)})
-    human.KeyRoot(6.8, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(6.8, {
-        'neck': (-57.552, -19.118, -23.282), 'head': (-20.0, 11.207),
-        'right_clavicle': (13.624, -13.801), 'right_shoulder': (2.118, 165.654, -40.315),
-        'left_clavicle': (30.0, 12.804), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+    human.KeyJoints(6.1, {'spine_thoracic': (-1.521, 4.063, -7.297)})
+    human.KeyJoints(6.2, {'left_clavicle': (30.0, -14.936)})
+    human.KeyJoints(6.3, {'right_shoulder': (11.286, 160.666, 44.414)})
+    human.KeyRoot(6.5, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(6.5, {
+        'neck': (-57.1, -33.75, -49.372), 'head': (-20.0, -11.25), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-79.997, 0.0, 40.001), start=6.887427, duration=4.515789)
+    human.Walk((-79.855, 0.0, 40.053), start=6.513584, duration=4.515789)
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
-    human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
+    human.KeyRoot(6.6, (0.279, 72.639, 50.062), (-0.58, 0.0, 0.0))
+    human.KeyJoints(6.6, {
+        'neck': (-49.765, -29.416, -43.031), 'head': (-17.431, -9.84),
+        'right_clavicle': (14.127, -14.107), 'right_elbow': (3.063, 41.917),
+        'right_hip': (7.455, 0.162, 0.607), 'right_knee': (14.143,), 'right_ankle': (6.326, 0.24),
+        'left_hip': (6.563, -0.171, -0.603), 'left_knee': (12.628,), 'left_ankle': (6.068, -0.239),
+    })
+    human.KeyRoot(6.7, (1.054, 72.489, 50.234), (-2.379, 0.0, 0.0))
+    human.KeyJoints(6.7, {
+        'neck': (-30.314, -17.919, -26.213), 'head': (-10.619, -6.003),
+        'right_hip': (9.346, 0.515, 2.51), 'right_knee': (17.813,), 'right_ankle': (7.586, 0.916),
+        'left_hip': (7.219, -0.594, -2.473), 'left_knee': (14.722,), 'left_ankle': (7.534, -0.9),
+    })
+    human.KeyRoot(6.8, (1.915, 72.487, 50.425), (-4.863, 0.0, 0.0))
+    human.KeyJoints(6.8, {
+        'spine_lumbar': (30.752, -5.712, -4.784), 'neck': (-9.856, -5.826, -8.523),
+        'head': (-3.452, -1.968), 'right_hip': (19.199, 1.082, 1.843), 'right_knee': (38.798,),
+        'right_ankle': (18.941, 1.621), 'left_hip': (6.744, -1.042, -5.019), 'left_knee': (14.525,),
+        'left_ankle': (7.887, -1.62),
+    })
+    human.KeyRoot(6.9, (2.441, 72.634, 50.541), (-7.483, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-57.181, -18.994, -23.134),
-        'head': (-19.871, 11.173), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
-        'right_knee': (5.94,), 'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014),
-        'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
+        'neck': (0.089, 0.052, 0.077), 'head': (0.031, -0.003),
+        'right_hip': (21.696, 3.821, -4.584), 'right_knee': (45.641,), 'right_ankle': (20.0, 1.966),
+        'left_hip': (7.588, -1.043, -7.727), 'left_knee': (16.777,), 'left_ankle': (8.19, -2.043),
     })
-    human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
+    human.KeyRoot(7.0, (2.255, 72.709, 50.206), (-9.935, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
-        'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,), 'right_ankle': (6.818, 0.388),
-        'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,), 'left_ankle': (6.542, -0.385),
+        'right_hip': (18.394, 6.102, -13.217), 'right_knee': (40.703,),
+        'right_ankle': (19.9, 1.712), 'left_hip': (10.813, 0.055, -10.223), 'left_knee': (23.194,),
+        'left_ankle': (8.823, -1.859),
     })
-    human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
+    human.KeyRoot(7.1, (1.489, 72.584, 49.18), (-12.689, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891), 'left_elbow': (8.013, -65.263),
-        'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
-        'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
+        'right_hip': (10.136, 4.03, -18.733), 'right_knee': (22.498,),
+        'right_ankle': (11.569, 0.723), 'left_hip': (14.704, 2.177, -12.687),
+        'left_knee': (30.137,), 'left_ankle': (8.777, -1.148),
     })
-    human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
+    human.KeyRoot(7.2, (0.592, 72.487, 48.51), (-15.978, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
-        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (18.851, 1.631, 0.537),
-        'right_knee': (38.348,), 'right_ankle': (18.377, 1.749),
-        'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,), 'left_ankle': (8.083, -1.773),
+        'right_hip': (7.437, 1.852, -16.489), 'right_knee': (14.785,),
+        'right_ankle': (7.129, -0.345), 'left_hip': (16.713, 4.473, -15.397),
+        'left_ankle': (8.4, -0.251),
     })
-    human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
+    human.KeyRoot(7.3, (-0.352, 72.487, 48.587), (-20.331, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (19.911, 4.648, -6.821),
-        'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
-        'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
+        'right_hip': (7.666, 0.517, -12.274), 'right_knee': (14.626,),
+        'left_hip': (17.567, 6.819, -18.296), 'left_knee': (38.528,), 'left_ankle': (10.761, 0.746),
     })
-    human.KeyRoot(7.4, (2.092, 72.713, 49.963), (-10.614, 0.0, 0.0))
+    human.KeyRoot(7.4, (-1.426, 72.487, 48.836), (-25.73, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'left_wrist': (7.663, -1.329), 'right_hip': (15.347, 5.98, -15.312),
-        'right_knee': (34.413,), 'right_ankle': (17.743, 1.503),
-        'left_hip': (11.807, 0.527, -10.868), 'left_knee': (24.956,), 'left_ankle': (8.788, -1.709),
+        'left_clavicle': (30.0, -15.0), 'right_hip': (7.596, -0.984, -7.023),
+        'right_knee': (14.31,), 'right_ankle': (6.888, -1.894), 'left_hip': (20.929, 6.73, -13.466),
+        'left_knee': (45.5,), 'left_ankle': (17.921, 1.349),
     })
-    human.KeyRoot(7.5, (1.248, 72.52, 48.925), (-13.49, 0.0, 0.0))
+    human.KeyRoot(7.5, (-2.22, 72.487, 49.206), (-31.297, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'right_hip': (7.07, 2.973, -18.824), 'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
-        'left_hip': (15.561, 2.817, -13.346), 'left_knee': (31.733,), 'left_ankle': (8.741, -0.916),
+        'right_hip': (7.756, -2.155, -1.58), 'right_knee': (14.778,),
+        'right_ankle': (6.888, -2.348), 'left_hip': (22.127, 2.488, -2.381), 'left_knee': (45.584,),
+        'left_ankle': (18.761, 1.463),
     })
-    human.KeyRoot(7.6, (0.379, 72.487, 48.508), (-16.969, 0.0, 0.0))
+    human.KeyRoot(7.6, (-2.566, 72.637, 50.15), (-36.478, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'right_hip': (7.524, 1.545, -15.53), 'right_knee': (14.759,),
-        'right_ankle': (7.097, -0.533), 'left_hip': (16.739, 5.001, -16.24), 'left_knee': (34.878,),
-        'left_ankle': (8.424, -0.023),
+        'right_hip': (9.619, -2.78, 3.419), 'right_knee': (19.246,), 'right_ankle': (7.448, -2.162),
+        'left_hip': (19.739, -2.431, 10.224), 'left_knee': (39.962,), 'left_ankle': (18.684, 1.275),
     })
-    human.KeyRoot(7.7, (-0.637, 72.487, 48.638), (-21.678, 0.0, 0.0))
+    human.KeyRoot(7.7, (-2.823, 72.634, 52.055), (-41.634, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'right_hip': (7.675, 0.12, -10.968), 'right_knee': (14.555,),
-        'left_hip': (19.106, 7.456, -17.844), 'left_knee': (42.234,), 'left_ankle': (13.375, 0.972),
+        'right_hip': (12.213, -3.301, 8.444), 'right_knee': (26.399,),
+        'right_ankle': (9.009, -1.411), 'left_hip': (12.322, -3.821, 19.063),
+        'left_knee': (26.224,), 'left_ankle': (13.45, 0.404),
     })
-    human.KeyRoot(7.8, (-1.678, 72.487, 48.923), (-27.207, 0.0, 0.0))
+    human.KeyRoot(7.8, (-2.965, 72.487, 53.595), (-46.79, 0.0, 0.0))
     human.KeyJoints(7.8, {
-        'right_hip': (7.541, -1.342, -5.58), 'right_knee': (14.222,),
-        'right_ankle': (6.842, -2.055), 'left_hip': (21.891, 6.012, -10.938),
-        'left_knee': (46.992,), 'left_ankle': (19.216, 1.41),
+        'right_hip': (14.508, -4.272, 13.506), 'right_knee': (32.342,),
+        'right_ankle': (9.829, -0.671), 'left_hip': (6.01, -2.767, 18.152), 'left_knee': (14.757,),
+        'left_ankle': (8.185, -0.745),
     })
-    human.KeyRoot(7.9, (-2.331, 72.513, 49.319), (-32.671, 0.0, 0.0))
+    human.KeyRoot(7.9, (-2.784, 72.487, 53.801), (-51.946, 0.0, 0.0))
     human.KeyJoints(7.9, {
-        'right_hip': (8.156, -2.368, -0.253), 'right_knee': (15.601,),
-        'right_ankle': (6.942, -2.379), 'left_hip': (22.336, 1.204, 1.029), 'left_knee': (45.501,),
-        'left_ankle': (19.184, 1.463),
+        'right_hip': (15.744, -5.69, 18.521), 'right_knee': (34.279,),
+        'right_ankle': (8.966, -0.249), 'left_hip': (5.527, -2.459, 13.006),
+        'left_ankle': (8.614, -1.142),
     })
-    human.KeyRoot(8.0, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
+    human.KeyRoot(8.0, (-1.843, 72.487, 53.824), (-57.103, 0.0, 0.0))
     human.KeyJoints(8.0, {
-        'right_hip': (10.407, -2.906, 4.717), 'right_knee': (21.318,),
-        'right_ankle': (7.991, -1.997), 'left_hip': (18.581, -3.341, 13.249),
-        'left_knee': (38.017,), 'left_ankle': (18.571, 1.11),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (20.431, -6.254, 17.101), 'right_knee': (43.374,),
+        'right_ankle': (15.546, 0.302), 'left_hip': (5.696, -2.424, 7.823),
+        'left_ankle': (8.426, -1.615),
     })
-    human.KeyRoot(8.1, (-2.874, 72.623, 52.556), (-42.983, 0.0, 0.0))
+    human.KeyRoot(8.1, (-0.646, 72.487, 53.836), (-62.259, 0.0, 0.0))
     human.KeyJoints(8.1, {
-        'right_hip': (12.795, -3.475, 9.776), 'right_knee': (28.043,),
-        'right_ankle': (9.271, -1.189), 'left_hip': (10.034, -3.551, 20.096), 'left_knee': (21.85,),
-        'left_ankle': (11.225, 0.095),
+        'right_hip': (21.826, -2.162, 7.408), 'right_knee': (45.763,),
+        'right_ankle': (18.647, 0.705), 'left_hip': (6.083, -2.411, 2.629), 'left_knee': (14.215,),
+        'left_ankle': (8.02, -2.116),
     })
-    human.KeyRoot(8.2, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
+    human.KeyRoot(8.2, (0.328, 72.548, 53.674), (-67.507, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
-        'right_ankle': (9.674, -0.561), 'left_hip': (5.777, -2.713, 16.804), 'left_knee': (14.686,),
-        'left_ankle': (8.371, -0.916),
+        'right_hip': (19.448, 3.409, -5.255), 'right_knee': (42.49,),
+        'right_ankle': (18.701, 1.339), 'left_hip': (7.282, -2.027, -2.68), 'left_knee': (15.817,),
+        'left_ankle': (7.965, -2.348),
     })
-    human.KeyRoot(8.3, (-2.595, 72.487, 53.808), (-53.295, 0.0, 0.0))
+    human.KeyRoot(8.3, (1.368, 72.553, 52.449), (-73.178, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'right_hip': (17.461, -6.382, 19.178), 'right_knee': (37.781,),
-        'right_ankle': (10.797, -0.07), 'left_hip': (5.527, -2.427, 11.653),
-        'left_ankle': (8.609, -1.251),
+        'right_hip': (13.947, 5.493, -15.906), 'right_knee': (31.96,),
+        'right_ankle': (17.775, 1.234), 'left_hip': (10.168, -0.262, -8.28), 'left_knee': (20.354,),
+        'left_ankle': (8.281, -1.718),
     })
-    human.KeyRoot(8.4, (-1.531, 72.487, 53.829), (-58.451, 0.0, 0.0))
+    human.KeyRoot(8.4, (2.207, 72.507, 50.848), (-78.462, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'right_hip': (21.602, -5.708, 15.063), 'right_knee': (45.621,),
-        'right_ankle': (17.881, 0.398), 'left_hip': (5.793, -2.431, 6.463), 'left_knee': (14.355,),
+        'right_hip': (6.882, 2.691, -19.044), 'right_knee': (14.872,),
+        'right_ankle': (7.546, 0.164), 'left_hip': (12.553, 2.307, -13.191), 'left_knee': (24.482,),
+        'left_ankle': (8.252, -0.65),
     })
-    human.KeyRoot(8.5, (-0.364, 72.487, 53.837), (-63.607, 0.0, 0.0))
+    human.KeyRoot(8.5, (2.402, 72.487, 49.809), (-82.351, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'right_hip': (21.932, -0.788, 4.133), 'right_knee': (46.273,),
-        'right_ankle': (19.11, 0.857), 'left_hip': (6.301, -2.379, 1.265), 'left_knee': (14.436,),
-        'left_ankle': (8.005, -2.226),
+        'right_hip': (7.694, 1.201, -15.323), 'right_ankle': (6.933, -0.879),
+        'left_hip': (13.269, 4.297, -16.675), 'left_knee': (26.63,), 'left_ankle': (8.295, 0.23),
     })
-    human.KeyRoot(8.6, (0.596, 72.548, 53.446), (-68.973, 0.0, 0.0))
+    human.KeyRoot(8.6, (1.973, 72.487, 49.058), (-85.114, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'right_hip': (18.708, 4.367, -8.493), 'right_knee': (41.461,),
-        'right_ankle': (19.092, 1.416), 'left_hip': (8.009, -1.702, -4.157), 'left_knee': (16.964,),
-        'left_ankle': (8.112, -2.261),
+        'right_hip': (7.674, 0.133, -12.674), 'right_ankle': (6.953, -1.551),
+        'left_hip': (16.658, 6.501, -17.214), 'left_knee': (35.358,), 'left_ankle': (13.595, 1.083),
     })
-    human.KeyRoot(8.7, (1.624, 72.555, 52.025), (-74.637, 0.0, 0.0))
+    human.KeyRoot(8.7, (1.263, 72.487, 48.484), (-87.454, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'right_hip': (12.244, 4.952, -17.815), 'right_ankle': (15.501, 1.024),
-        'left_hip': (10.864, 0.381, -9.665), 'left_knee': (21.475,), 'left_ankle': (8.253, -1.453),
+        'right_hip': (7.287, -0.716, -10.411), 'right_knee': (14.292,),
+        'right_ankle': (7.251, -2.013), 'left_hip': (20.254, 6.565, -12.457),
+        'left_knee': (42.791,), 'left_ankle': (18.343, 1.771),
     })
-    human.KeyRoot(8.8, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))
+    human.KeyRoot(8.8, (0.583, 72.627, 48.301), (-89.895, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'right_hip': (7.209, 2.137, -17.926), 'right_knee': (14.819,),
-        'right_ankle': (7.305, -0.196), 'left_hip': (12.959, 2.948, -14.252), 'left_knee': (25.35,),
-        'left_ankle': (8.267, -0.38),
+        'right_hip': (10.897, -0.637, -8.177), 'right_knee': (22.075,),
+        'right_ankle': (8.359, -2.164), 'left_hip': (20.729, 4.334, -5.899), 'left_knee': (42.834,),
+        'left_ankle': (18.439, 2.048),
     })
-    human.KeyRoot(8.9, (2.334, 72.487, 49.607), (-83.144, 0.0, 0.0))
+    human.KeyRoot(8.9, (0.055, 72.709, 48.89), (-93.127, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'right_hip': (7.745, 0.91, -14.562), 'right_ankle': (6.893, -1.068),
-        'left_hip': (13.156, 4.677, -17.385), 'left_knee': (26.784,), 'left_ankle': (8.367, 0.447),
+        'right_hip': (20.48, 0.13, -5.265), 'right_knee': (39.767,), 'right_ankle': (5.88, -1.767),
+        'left_hip': (17.229, 1.831, -0.987), 'left_knee': (35.133,), 'left_ankle': (17.888, 1.582),
     })
-    human.KeyRoot(9.0, (1.802, 72.487, 48.882), (-85.746, 0.0, 0.0))
+    human.KeyRoot(9.0, (-0.517, 72.591, 49.918), (-96.242, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'right_hip': (7.593, -0.117, -12.066), 'right_ankle': (7.018, -1.696),
-        'left_hip': (18.509, 7.058, -16.276), 'left_knee': (39.353,), 'left_ankle': (16.186, 1.29),
+        'right_hip': (29.225, 0.203, -2.009), 'right_knee': (53.19,),
+        'right_ankle': (-2.491, -0.898), 'left_hip': (9.333, 0.426, 0.946), 'left_knee': (19.047,),
+        'left_ankle': (9.74, 0.695),
     })
-    human.KeyRoot(9.1, (1.069, 72.487, 48.39), (-88.06, 0.0, 0.0))
+    human.KeyRoot(9.1, (-1.342, 72.487, 50.716), (-97.694, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'right_hip': (7.179, -0.882, -9.816), 'right_knee': (14.268,),
-        'right_ankle': (7.338, -2.084), 'left_hip': (21.279, 6.318, -10.704),
-        'left_knee': (44.664,), 'left_ankle': (18.954, 1.894),
+        'right_hip': (34.503, 0.039, 0.11), 'right_knee': (60.111,), 'right_ankle': (-11.14, 0.117),
+        'left_hip': (6.575, -0.075, -0.007), 'left_knee': (14.827,), 'left_ankle': (8.252, -0.075),
     })
-    human.KeyRoot(9.2, (0.438, 72.69, 48.375), (-90.665, 0.0, 0.0))
+    human.KeyRoot(9.2, (-3.019, 72.268, 51.145), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'right_hip': (13.209, -0.413, -7.512), 'right_knee': (26.59,), 'right_ankle': (8.33, -2.12),
-        'left_hip': (20.677, 3.795, -4.318), 'left_knee': (42.513,), 'left_ankle': (18.961, 1.999),
+        'right_hip': (35.976, 0.273, 1.0), 'right_knee': (64.121,), 'right_ankle': (-10.474, 1.036),
+        'left_hip': (6.257, -0.631, -0.069), 'left_knee': (17.074,), 'left_ankle': (10.817, -0.635),
     })
-    human.KeyRoot(9.3, (-0.082, 72.709, 49.144), (-94.017, 0.0, 0.0))
+    human.KeyRoot(9.3, (-5.792, 72.027, 51.51), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'right_hip': (22.932, 0.221, -4.395), 'right_knee': (43.792,),
-        'right_ankle': (4.063, -1.576), 'left_hip': (15.851, 1.46, -0.095), 'left_knee': (32.257,),
-        'left_ankle': (16.434, 1.368),
+        'right_hip': (37.484, 0.777, 1.6), 'right_knee': (64.205,), 'right_ankle': (0.24, 1.778),
+        'left_hip': (4.387, -1.267, -0.097), 'left_knee': (18.053,), 'left_ankle': (13.667, -1.271),
     })
-    human.KeyRoot(9.4, (-0.7, 72.527, 50.176), (-96.847, 0.0, 0.0))
+    human.KeyRoot(9.4, (-9.253, 71.983, 51.732), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.4, {
-        'right_hip': (31.078, 0.133, -1.269), 'right_knee': (55.711,),
-        'right_ankle': (-4.997, -0.622), 'left_hip': (7.593, 0.352, 0.862), 'left_knee': (15.684,),
-        'left_ankle': (8.125, 0.459),
+        'right_hip': (35.515, 1.541, 1.538), 'right_knee': (52.173,), 'right_ankle': (7.338, 2.178),
+        'left_hip': (0.232, -1.864, -0.017), 'left_knee': (15.402,), 'left_ankle': (14.895, -1.864),
     })
-    human.KeyRoot(9.5, (-1.652, 72.447, 50.83), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.5, (-13.343, 71.906, 51.561), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.5, {
-        'right_hip': (35.11, 0.096, 0.322), 'right_knee': (61.101,),
-        'right_ankle': (-12.343, 0.336), 'left_hip': (6.551, -0.206, -0.024),
-        'left_knee': (15.307,), 'left_ankle': (8.756, -0.208),
+        'right_hip': (31.491, 1.996, 1.224), 'right_knee': (35.771,), 'right_ankle': (4.347, 2.341),
+        'left_hip': (5.532, -2.173, -0.573), 'left_knee': (32.7,), 'left_ankle': (17.938, -2.247),
     })
-    human.KeyRoot(9.6, (-3.655, 72.205, 51.25), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.6, (-19.294, 71.488, 50.215), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.6, {
-        'right_hip': (36.786, 0.364, 1.217), 'right_knee': (65.859,), 'right_ankle': (-7.617, 1.27),
-        'left_hip': (5.93, -0.794, -0.082), 'left_knee': (17.507,), 'left_ankle': (11.578, -0.798),
+        'right_hip': (27.203, 1.605, 0.825), 'right_knee': (24.587,),
+        'right_ankle': (-2.537, 1.805), 'left_hip': (10.685, -1.546, -1.155),
+        'left_knee': (51.141,), 'left_ankle': (14.391, -1.93),
     })
-    human.KeyRoot(9.7, (-6.648, 71.983, 51.585), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.7, (-25.74, 71.06, 48.297), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.7, {
-        'right_hip': (37.582, 0.969, 1.643), 'right_knee': (62.681,), 'right_ankle': (3.103, 1.908),
-        'left_hip': (3.525, -1.433, -0.088), 'left_ankle': (14.235, -1.436),
+        'right_hip': (19.966, 0.793, 0.288), 'right_knee': (14.439,),
+        'right_ankle': (-5.474, 0.843), 'left_hip': (12.871, -0.583, -0.903),
+        'left_knee': (62.048,), 'left_ankle': (4.896, -1.075),
     })
-    human.KeyRoot(9.8, (-10.22, 72.001, 51.756), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.8, (-30.889, 71.129, 46.619), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.8, {
-        'right_hip': (34.56, 1.724, 1.451), 'right_knee': (47.96,), 'right_ankle': (7.772, 2.253),
-        'left_hip': (0.705, -2.0, -0.077), 'left_knee': (17.967,), 'left_ankle': (15.767, -2.002),
+        'right_hip': (18.819, -0.014, -0.005), 'right_knee': (21.339,),
+        'right_ankle': (2.519, -0.015), 'left_hip': (12.165, 0.008, 0.021), 'left_knee': (64.585,),
+        'left_ankle': (-4.924, 0.022),
     })
-    human.KeyRoot(9.9, (-14.752, 71.843, 51.31), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.9, (-34.02, 71.607, 45.271), (-97.02, 0.0, 0.0))
     human.KeyJoints(9.9, {
-        'right_hip': (30.974, 1.954, 1.166), 'right_knee': (33.466,), 'right_ankle': (2.563, 2.275),
-        'left_hip': (7.11, -2.09, -0.771), 'left_knee': (37.954,), 'left_ankle': (17.707, -2.228),
+        'right_hip': (15.625, -0.6, -0.869), 'right_knee': (20.818,),
+        'right_ankle': (5.202, -0.812), 'left_hip': (11.303, 0.358, 1.692), 'left_knee': (65.396,),
+        'left_ankle': (-2.955, 1.246),
     })
-    human.KeyRoot(10.0, (-21.005, 71.361, 49.736), (-97.695, 0.0, 0.0))
+    human.KeyRoot(10.0, (-36.541, 72.091, 43.997), (-95.55, 0.0, 0.0))
     human.KeyJoints(10.0, {
-        'right_hip': (25.395, 1.42, 0.671), 'right_knee': (21.477,), 'right_ankle': (-3.869, 1.57),
-        'left_hip': (11.535, -1.29, -1.183), 'left_knee': (54.8,), 'left_ankle': (12.302, -1.75),
+        'right_hip': (11.832, -1.128, -2.427), 'right_knee': (18.021,),
+        'right_ankle': (6.243, -1.6), 'left_hip': (21.789, 1.096, 2.622), 'left_knee': (68.687,),
+        'left_ankle': (13.412, 2.38),
     })
-    human.KeyRoot(10.1, (-27.284, 70.996, 47.802), (-97.695, 0.0, 0.0))
+    human.KeyRoot(10.1, (-39.925, 72.272, 43.013), (-94.02, 0.0, 0.0))
     human.KeyJoints(10.1, {
-        'right_hip': (19.404, 0.558, 0.196), 'right_knee': (15.775,),
-        'right_ankle': (-3.599, 0.591), 'left_hip': (12.975, -0.378, -0.694),
-        'left_knee': (63.521,), 'left_ankle': (2.086, -0.79),
+        'right_hip': (10.355, -1.349, -4.032), 'right_knee': (21.248,),
+        'right_ankle': (9.571, -2.049), 'left_hip': (29.571, 1.597, 1.34), 'left_knee': (52.921,),
+        'left_ankle': (16.617, 2.063),
     })
-    human.KeyRoot(10.2, (-31.849, 71.25, 46.271), (-97.636, 0.0, 0.0))
+    human.KeyRoot(10.2, (-48.032, 71.823, 42.311), (-92.585, 0.0, 0.0))
     human.KeyJoints(10.2, {
-        'right_hip': (18.048, -0.175, -0.12), 'right_knee': (21.565,),
-        'right_ankle': (3.517, -0.204), 'left_hip': (11.5, 0.09, 0.348), 'left_knee': (64.101,),
-        'left_ankle': (-6.498, 0.307),
+        'right_hip': (12.363, -0.542, -5.692), 'right_knee': (39.086,),
+        'right_ankle': (15.904, -1.776), 'left_hip': (30.13, 0.695, -0.333), 'left_knee': (33.56,),
+        'left_ankle': (3.56, 0.436),
     })
-    human.KeyRoot(10.3, (-34.678, 71.734, 44.922), (-96.682, 0.0, 0.0))
+    human.KeyRoot(10.3, (-60.616, 71.15, 41.709), (-91.027, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'right_hip': (14.708, -0.743, -1.242), 'right_knee': (20.248,),
-        'right_ankle': (5.556, -1.034), 'left_hip': (12.972, 0.511, 2.114), 'left_knee': (66.425,),
-        'left_ankle': (0.748, 1.61),
+        'right_hip': (6.503, 0.069, -7.035), 'right_knee': (47.997,),
+        'right_ankle': (17.099, -0.798), 'left_hip': (23.44, -0.708, -1.028),
+        'left_knee': (18.049,), 'left_ankle': (-5.271, -1.056),
     })
-    human.KeyRoot(10.4, (-37.283, 72.181, 43.703), (-95.126, 0.0, 0.0))
+    human.KeyRoot(10.4, (-69.451, 71.046, 41.377), (-90.063, 0.0, 0.0))
     human.KeyJoints(10.4, {
-        'right_hip': (10.844, -1.249, -2.854), 'right_knee': (17.428,),
-        'right_ankle': (6.654, -1.762), 'left_hip': (24.436, 1.311, 2.485), 'left_knee': (65.938,),
-        'left_ankle': (15.705, 2.47),
+        'right_hip': (0.758, 0.12, -7.617), 'right_knee': (49.102,), 'right_ankle': (12.123, 0.023),
+        'left_hip': (19.309, -1.12, -0.46), 'left_knee': (19.909,), 'left_ankle': (0.605, -1.209),
     })
-    human.KeyRoot(10.5, (-41.205, 72.209, 42.826), (-93.689, 0.0, 0.0))
+    human.KeyRoot(10.5, (-70.27, 71.288, 41.698), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
-        'right_hip': (11.585, -1.208, -4.454), 'right_knee': (25.941,),
-        'right_ankle': (11.27, -2.077), 'left_hip': (29.855, 1.51, 0.808), 'left_knee': (45.935,),
-        'left_ankle': (13.612, 1.714),
+        'right_hip': (2.503, 0.66, -7.37), 'right_knee': (52.428,), 'right_ankle': (9.723, 0.447),
+        'left_hip': (18.044, -1.412, -0.46), 'left_knee': (18.769,), 'left_ankle': (0.731, -1.485),
     })
-    human.KeyRoot(10.6, (-51.221, 71.633, 42.137), (-92.161, 0.0, 0.0))
+    human.KeyRoot(10.6, (-70.367, 71.551, 42.756), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
-        'right_hip': (11.443, -0.311, -6.101), 'right_knee': (42.595,),
-        'right_ankle': (16.939, -1.56), 'left_hip': (28.873, 0.312, -0.645), 'left_knee': (28.84,),
-        'left_ankle': (0.056, -0.038),
-    })
-    human.KeyRoot(10.7, (-63.626, 71.08, 41.589), (-90.688, 0.0, 0.0))
-    human.KeyJoints(10.7, {
-        'right_hip': (4.43, 0.095, -7.269), 'right_knee': (48.438,),
-        'right_ankle': (16.115, -0.528), 'left_hip': (20.933, -0.954, -0.954),
-        'left_knee': (14.78,), 'left_ankle': (-6.067, -1.232),
-    })
-    human.KeyRoot(10.8, (-70.11, 71.11, 41.357), (-90.001, 0.0, 0.0))
-    human.KeyJoints(10.8, {
-        'right_hip': (0.944, 0.199, -7.636), 'right_knee': (49.984,),
-        'right_ankle': (10.732, 0.091), 'left_hip': (18.959, -1.125, -0.387),
-        'left_knee': (20.361,), 'left_ankle': (1.407, -1.19),
-    })
-    human.KeyRoot(10.9, (-70.301, 71.351, 41.949), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.9, {
-        'right_hip': (4.368, 1.006, -7.081), 'right_knee': (55.782,),
-        'right_ankle': (13.303, 0.637), 'left_hip': (17.684, -1.622, -0.517),
-        'left_knee': (18.081,), 'left_ankle': (0.404, -1.702),
-    })
-    human.KeyRoot(11.0, (-70.396, 71.613, 43.011), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.0, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.793, 2.22, -4.887),
-        'right_knee': (57.652,), 'right_ankle': (19.416, 1.222),
-        'left_hip': (15.962, -2.518, -0.72), 'left_knee': (14.686,), 'left_ankle': (-1.26, -2.619),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (10.306, 1.983, -5.592),
+        'right_knee': (57.93,), 'right_ankle': (18.945, 1.082),
+        'left_hip': (16.413, -2.302, -0.678), 'left_knee': (15.569,), 'left_ankle': (-0.83, -2.4),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
-    human.LookAt((-110.0, 85.0, 40.0), start=11.003216, duration=1.397891)
-    human.KeyRoot(11.1, (-70.776, 71.855, 43.313), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.1, {
-        'neck': (3.154, -3.042, 1.353), 'head': (1.352, 1.013),
-        'right_hip': (19.146, 2.452, -2.188), 'right_knee': (47.265,),
-        'right_ankle': (19.357, 1.629), 'left_hip': (14.241, -2.782, -0.706),
-        'left_knee': (11.802,), 'left_ankle': (-2.421, -2.87),
+    human.LookAt((-110.0, 85.0, 40.0), start=10.629373, duration=1.297891)
+    human.KeyRoot(10.7, (-70.538, 71.792, 43.376), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.7, {
+        'neck': (1.824, -1.759, 0.609), 'head': (0.782, 0.586),
+        'right_hip': (17.525, 2.491, -2.862), 'right_knee': (49.506,),
+        'right_ankle': (18.953, 1.553), 'left_hip': (14.631, -2.833, -0.739),
+        'left_knee': (12.184,), 'left_ankle': (-2.428, -2.928),
     })
-    human.KeyRoot(11.2, (-73.788, 71.983, 42.264), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.2, {
-        'neck': (11.143, -10.745, 4.779), 'head': (4.775, 3.577),
-        'right_hip': (19.52, 1.751, -0.22), 'right_knee': (34.329,), 'right_ankle': (14.929, 1.58),
-        'left_hip': (13.675, -1.903, -0.463), 'left_knee': (16.058,), 'left_ankle': (2.39, -1.959),
+    human.KeyRoot(10.8, (-72.776, 71.984, 42.625), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.8, {
+        'neck': (9.116, -8.79, 3.043), 'head': (3.907, 2.93), 'right_hip': (20.485, 2.01, -0.626),
+        'right_knee': (38.437,), 'right_ankle': (17.904, 1.664),
+        'left_hip': (13.756, -2.206, -0.54), 'left_knee': (14.4,), 'left_ankle': (0.656, -2.271),
     })
-    human.KeyRoot(11.3, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.3, {
-        'neck': (21.031, -20.28, 9.021), 'head': (9.013, 6.751),
-        'right_hip': (10.552, 0.664, 0.124), 'right_knee': (16.897,), 'right_ankle': (6.345, 0.676),
-        'left_hip': (10.552, -0.664, -0.124), 'left_knee': (16.897,), 'left_ankle': (6.345, -0.676),
+    human.KeyRoot(10.9, (-76.863, 72.134, 41.15), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.9, {
+        'neck': (19.079, -18.398, 6.368), 'head': (8.177, 6.133),
+        'right_hip': (12.179, 0.968, 0.197), 'right_knee': (18.397,), 'right_ankle': (6.337, 0.988),
+        'left_hip': (11.745, -0.972, -0.202), 'left_knee': (17.585,), 'left_ankle': (5.842, -0.993),
     })
-    human.KeyRoot(11.4, (-79.996, 72.986, 40.001), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.4, {
-        'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
-        'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
-        'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
-        'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
-        'right_hip': (2.974, 0.001, 0.0), 'right_knee': (4.811,), 'right_ankle': (1.836, 0.001),
-        'left_hip': (2.974, -0.001, 0.0), 'left_knee': (4.811,), 'left_ankle': (1.836, -0.001),
+    human.KeyRoot(11.0, (-79.795, 72.748, 40.075), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.0, {
+        'neck': (28.557, -27.537, 9.532), 'head': (12.239, 9.179),
+        'right_shoulder': (11.286, 160.67, 44.414), 'right_elbow': (3.063, 41.917),
+        'right_wrist': (5.657, -5.581), 'left_shoulder': (14.924, 162.156, -61.258),
+        'left_elbow': (0.0, -32.656), 'left_wrist': (-8.432, 3.583),
+        'right_hip': (5.962, 0.064, 0.007), 'right_knee': (10.739,), 'right_ankle': (4.777, 0.065),
+        'left_hip': (5.962, -0.064, -0.007), 'left_knee': (10.739,), 'left_ankle': (4.777, -0.065),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(11.5, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.5, {
-        'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
-        'right_shoulder': (2.557, 164.029, -39.354), 'right_elbow': (8.192, 8.141),
-        'right_wrist': (12.393, -10.943), 'left_shoulder': (21.513, 161.878, -63.616),
-        'left_elbow': (9.013, -65.117), 'left_wrist': (8.188, -1.538),
+    human.KeyRoot(11.1, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.1, {
+        'neck': (34.393, -33.164, 11.48), 'head': (14.74, 11.055),
+        'right_shoulder': (11.473, 159.955, 44.479), 'right_elbow': (3.515, 41.468),
+        'right_wrist': (5.855, -5.671), 'left_shoulder': (15.049, 161.432, -60.696),
+        'left_elbow': (0.499, -32.713), 'left_wrist': (-8.122, 3.458),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
+    human.KeyJoints(11.2, {
+        'neck': (35.0, -33.75, 11.683), 'head': (15.0, 11.25),
+        'right_shoulder': (13.45, 152.407, 45.169), 'right_elbow': (8.285, 36.719),
+        'right_wrist': (7.939, -6.622), 'left_shoulder': (16.362, 153.792, -54.763),
+        'left_elbow': (5.762, -33.31), 'left_wrist': (-4.848, 2.136),
+    })
+    human.KeyJoints(11.3, {
+        'right_shoulder': (18.102, 134.645, 46.825), 'right_elbow': (19.51, 25.544),
+        'right_wrist': (12.842, -8.879), 'left_shoulder': (19.454, 135.813, -40.762),
+        'left_elbow': (18.149, -34.716), 'left_wrist': (2.857, -0.996),
+    })
+    human.KeyJoints(11.4, {
+        'right_shoulder': (24.74, 109.298, 49.334), 'right_elbow': (35.527, 9.598),
+        'right_wrist': (19.84, -12.179), 'left_shoulder': (23.864, 110.157, -20.61),
+        'left_elbow': (35.825, -36.722), 'left_wrist': (13.851, -5.56),
+    })
+    human.KeyJoints(11.5, {
+        'right_shoulder': (32.233, 80.688, 52.457), 'right_elbow': (53.606, -8.402),
+        'right_wrist': (27.739, -16.064), 'left_shoulder': (28.843, 81.198, 2.478),
+        'left_elbow': (55.776, -38.987), 'left_wrist': (26.261, -10.898),
+    })
     human.KeyJoints(11.6, {
-        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
-        'right_shoulder': (5.145, 154.451, -33.69), 'right_elbow': (12.97, 4.812),
-        'right_wrist': (14.255, -11.833), 'left_shoulder': (22.411, 154.185, -56.567),
-        'left_elbow': (14.903, -64.255), 'left_wrist': (11.281, -2.77),
+        'right_shoulder': (39.467, 53.002, 56.016), 'right_elbow': (71.036, -25.795),
+        'right_wrist': (35.363, -20.118), 'left_shoulder': (33.648, 53.177, 25.432),
+        'left_elbow': (75.014, -41.163), 'left_wrist': (38.248, -16.411),
     })
     human.KeyJoints(11.7, {
-        'right_shoulder': (10.279, 135.448, -22.421), 'right_elbow': (22.449, -1.792),
-        'right_wrist': (17.948, -13.607), 'left_shoulder': (24.193, 138.92, -42.553),
-        'left_elbow': (26.588, -62.533), 'left_wrist': (17.418, -5.227),
-    })
-    human.KeyJoints(11.8, {
-        'right_shoulder': (17.121, 110.12, -7.241), 'right_elbow': (35.075, -10.592),
-        'right_wrist': (22.868, -16.025), 'left_shoulder': (26.566, 118.568, -23.743),
-        'left_elbow': (42.153, -60.171), 'left_wrist': (25.594, -8.573),
-    })
-    human.KeyJoints(11.9, {
-        'right_shoulder': (24.665, 82.075, 9.988), 'right_elbow': (48.917, -20.295),
-        'right_wrist': (28.274, -18.848), 'left_shoulder': (29.177, 96.001, -2.575),
-        'left_elbow': (59.248, -57.361), 'left_wrist': (34.601, -12.483),
-    })
-    human.KeyJoints(12.0, {
-        'right_shoulder': (31.86, 54.482, 27.753), 'right_elbow': (61.456, -29.524),
-        'right_wrist': (33.26, -21.968), 'left_shoulder': (31.616, 73.659, 18.837),
-        'left_elbow': (74.987, -54.064), 'left_wrist': (43.099, -16.841),
-    })
-    human.KeyJoints(12.1, {
-        'right_shoulder': (37.593, 30.026, 44.525), 'right_elbow': (69.419, -36.77),
-        'right_wrist': (36.702, -25.293), 'left_shoulder': (33.419, 53.503, 38.405),
-        'left_elbow': (85.79, -50.124), 'left_wrist': (49.565, -21.607),
-    })
-    human.KeyJoints(12.2, {
-        'right_shoulder': (41.258, 11.842, 57.608), 'right_elbow': (72.356, -41.273),
-        'right_wrist': (38.333, -28.18), 'left_shoulder': (34.428, 38.197, 53.213),
-        'left_elbow': (90.85, -46.373), 'left_wrist': (53.363, -25.85),
+        'right_shoulder': (45.015, 29.509, 60.512), 'right_elbow': (83.25, -39.558),
+        'right_wrist': (41.029, -24.374), 'left_shoulder': (37.278, 29.528, 45.929),
+        'left_elbow': (88.684, -42.428), 'left_wrist': (47.521, -22.07),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
-    human.KeyJoints(12.3, {
-        'right_shoulder': (42.974, 2.726, 64.283), 'right_elbow': (73.132, -43.331),
-        'right_wrist': (38.935, -29.718), 'left_shoulder': (34.86, 30.437, 60.687),
-        'left_elbow': (92.709, -44.311), 'left_wrist': (55.038, -28.13),
+    human.KeyJoints(11.8, {
+        'right_shoulder': (47.387, 12.915, 65.573), 'right_elbow': (84.396, -46.336),
+        'right_wrist': (42.643, -28.454), 'left_shoulder': (38.676, 13.18, 60.529),
+        'left_elbow': (90.673, -41.662), 'left_wrist': (51.394, -27.401),
     })
-    human.KeyJoints(12.4, {
-        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
-        'right_wrist': (39.035, -30.0), 'left_shoulder': (34.936, 29.031, 62.041),
-        'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
+    human.KeyJoints(11.9, {
+        'right_shoulder': (47.866, 7.865, 67.327), 'right_elbow': (83.457, -47.87),
+        'right_wrist': (42.708, -29.816), 'left_shoulder': (38.908, 8.316, 64.843),
+        'left_elbow': (89.966, -41.151), 'left_wrist': (52.098, -29.181),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=12.401107, duration=0.072)
+    human.Grasp('left_hand', 'open', start=11.927264, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=12.401107, duration=0.072)
-    human.KeyRoot(12.473107, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(12.473107, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'spine_thoracic': (-3.188, -0.252, -0.868),
-        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236), 'right_clavicle': (13.623, -13.802),
-        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
-        'right_wrist': (39.035, -30.0), 'left_clavicle': (30.0, 12.805),
-        'left_shoulder': (34.936, 29.031, 62.041), 'left_elbow': (93.029, -43.934),
-        'left_wrist': (55.336, -28.546), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+    human.Grasp('right_hand', 'open', start=11.927264, duration=0.072)
+    human.KeyRoot(11.999264, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.999264, {
+        'spine_lumbar': (30.752, -5.712, -4.784), 'spine_thoracic': (-1.499, 4.031, -7.305),
+        'neck': (35.0, -33.75, 11.683), 'head': (15.0, 11.25), 'right_clavicle': (14.127, -14.107),
+        'right_shoulder': (47.872, 7.803, 67.348), 'right_elbow': (83.444, -47.888),
+        'right_wrist': (42.708, -29.833), 'left_clavicle': (30.0, -15.0),
+        'left_shoulder': (38.91, 8.258, 64.895), 'left_elbow': (89.957, -41.144),
+        'left_wrist': (52.106, -29.203), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

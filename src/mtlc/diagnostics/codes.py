@@ -215,6 +215,7 @@ _ALL = [
         "a hand, forearm or tool does not fit through the way to a site",
     ),
     Code("MT0611", "site-occluded", Severity.WARNING, "the equipment hides a site from the eyes"),
+    Code("MT0612", "arms-crossed", Severity.WARNING, "each hand works on the other's side"),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from mtlc.diagnostics import CODES, Code
 from mtlc.frontend import Program
 from mtlc.lint.findings import Finding
-from mtlc.lint.rules import access, lifting, motion, sustained, unused, visibility
+from mtlc.lint.rules import access, crossing, lifting, motion, sustained, unused, visibility
 from mtlc.lint.rules.view import MotionView
 
 ProgramRule = Callable[[Program], list[Finding]]
@@ -48,6 +48,7 @@ RULES: tuple[Rule, ...] = (
     Rule("MT0609", sustained.sustained_posture, "motion"),
     Rule("MT0610", access.access_openings, "motion"),
     Rule("MT0611", visibility.site_hidden, "motion"),
+    Rule("MT0612", crossing.crossed_arms, "motion"),
 )
 # MT0606 (unused suppression) is reported by mtlc.lint.suppress after every rule has run.
 

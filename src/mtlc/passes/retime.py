@@ -20,6 +20,13 @@ better, no arm joint turns faster than ``pace.PEAK_JOINT_SPEED`` (or than it did
 arrives faster than ``CONTACT_SPEED`` (or than it did), and neither arm goes deeper into the body than it went anywhere in the reach before
 (``DEEPER_INSIDE``; an arm that was clear ``DEEPER`` at most), nor any hand's fingertip lower
 than it was or the ground; else the reach stays as it was.
+
+Where the bend is the pelvis's or the trunk's (balance moves the pelvis under a load the hands
+carry out, and the hands ride on it), the whole body is run along its own poses on the same
+bell (``warped``), if no walk shares the window and no other segment starts or ends inside it
+(``_warpable``): also for a part in both hands, whose arms are not re-timed alone. Its soles
+may go no further than ``FEET_SLIP`` beyond where they went; of the two ways, the one that
+scores better is kept.
 """
 
 from __future__ import annotations

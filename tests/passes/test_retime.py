@@ -11,52 +11,92 @@ clearance left.
 
 from __future__ import annotations
 
+import copy
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import bench_human, compile_on, reach_on_frames
 
+from mtlc import passes
+from mtlc.body import forward, site_positions
+from mtlc.ir.model import Frames, MotionIR
 from mtlc.passes import retime
+from mtlc.passes.sample import resample
 
 ROOT = Path(__file__).resolve().parents[2]
 RELAY = ROOT / "tests" / "data" / "retime" / "r01_relay_behind_panel.mtask"
 
 
-def _relay_reach() -> tuple[float, float]:
+@dataclass
+class Relay:
+    """The relay task compiled once (female P90): its output and the dense frames just before
+    and just after the retime pass."""
+
+    ir: MotionIR
+    before: Frames
+    after: Frames
+
+
+@pytest.fixture(scope="module")
+def relay() -> Relay:
+    seen: dict[str, Frames] = {}
+    at = [name for name, _ in passes.MOTION_PASSES].index("retime")
+
+    def spy(ir: MotionIR, ctx: object) -> MotionIR:
+        seen["before"] = copy.deepcopy(ir.frames)
+        out = retime.run(ir, ctx)  # type: ignore[arg-type]
+        seen["after"] = copy.deepcopy(out.frames)
+        return out
+
+    kept = passes.MOTION_PASSES[at]
+    passes.MOTION_PASSES[at] = ("retime", spy)
+    try:
+        ir, _ = compile_on(RELAY, ("female", 90))
+    finally:
+        passes.MOTION_PASSES[at] = kept
+    return Relay(ir, seen["before"], seen["after"])
+
+
+def _relay_reach(ir: MotionIR, frames: Frames) -> tuple[float, float]:
     """LDLJ of the right hand over the reach of line 33 and its fastest arm joint (deg/s), on
-    the output frames."""
-    ir, _ = compile_on(RELAY, ("female", 90))
-    assert ir.frames is not None
-    rows, hand, dt, _ = reach_on_frames(ir, "relay", line=33)
+    ``frames`` (the output's, or others at its rate)."""
+    rows, _, dt, _ = reach_on_frames(ir, "relay", line=33)
+    pose = forward(ir.skeleton, frames.q[rows], frames.root_position[rows],
+                   frames.root_rotation[rows], with_axes=False)  # fmt: skip
+    hand = np.asarray(site_positions(ir.skeleton, pose, ["r_hand"]))[:, 0]
     arm = [i for i, n in enumerate(ir.skeleton.dof_names) if n.startswith("r_")
            and not n.startswith(("r_hip", "r_knee", "r_ankle"))]  # fmt: skip
-    speed = np.degrees(np.abs(np.diff(ir.frames.q[np.ix_(rows, arm)], axis=0)).max()) / dt
+    speed = np.degrees(np.abs(np.diff(frames.q[np.ix_(rows, arm)], axis=0)).max()) / dt
     return bench_human()._ldlj(hand, dt), float(speed)
 
 
-def test_the_relay_reach_is_one_bell_again(monkeypatch: pytest.MonkeyPatch) -> None:
-    now, speed = _relay_reach()
+def test_the_relay_reach_is_one_bell_again(relay: Relay) -> None:
+    out = relay.ir.frames
+    assert out is not None
+    now, speed = _relay_reach(relay.ir, out)
     assert now >= -8.0, f"LDLJ {now:.2f}"
     assert speed <= 360.0
-    monkeypatch.setattr(retime, "RETIME_FROM", -np.inf)
-    was, _ = _relay_reach()
+    # the same reach as the frames came to the pass, at the output's rate
+    was, _ = _relay_reach(relay.ir, resample(relay.before, out.fps))
     assert was < now - 1.0, f"{was:.2f} -> {now:.2f}"
 
 
-def test_the_reach_keeps_its_ends() -> None:
-    before, _ = compile_on(RELAY, ("female", 90), until="clearance")
-    after, _ = compile_on(RELAY, ("female", 90), until="retime")
-    fb, fa = before.frames, after.frames
-    assert fb is not None and fa is not None
+def test_the_reach_keeps_its_ends(relay: Relay) -> None:
+    fb, fa = relay.before, relay.after
     assert np.array_equal(fb.time, fa.time)
-    rows, _, _, _ = reach_on_frames(after, "relay", line=33)
+    (ta,) = [s for s in relay.ir.segments if s.kind == "TA" and s.goal.site == "relay"
+             and s.provenance.origin.line == 33]  # fmt: skip
+    (to,) = [s for s in relay.ir.segments if s.kind == "TO" and s.track == ta.track
+             and abs(s.start - ta.end) < 1e-6]  # fmt: skip
+    rows = np.flatnonzero((fa.time >= ta.start - 1e-9) & (fa.time <= to.end + 1e-9))
     assert np.array_equal(fa.q[rows[[0, -1]]], fb.q[rows[[0, -1]]])
     assert not np.array_equal(fa.q[rows], fb.q[rows])  # the pass re-timed it
     # the legs keep balance's clock, everywhere
     legs = [
         i
-        for i, n in enumerate(after.skeleton.dof_names)
+        for i, n in enumerate(relay.ir.skeleton.dof_names)
         if n[2:].startswith(("hip", "knee", "ankle"))
     ]
     assert np.array_equal(fa.q[:, legs], fb.q[:, legs])

@@ -201,6 +201,19 @@ def reach_on_frames(
     return rows, hand, float(np.median(np.diff(fr.time))), to
 
 
+def hands_apart(ir: MotionIR, rows: np.ndarray) -> np.ndarray:
+    """(len(rows),) how far apart the two hands are on the frames' ``rows``: a part held in
+    both keeps it."""
+    from mtlc.body import forward, site_positions
+
+    fr = ir.frames
+    assert fr is not None
+    pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
+                   with_axes=False)  # fmt: skip
+    hands = np.asarray(site_positions(ir.skeleton, pose, ["r_hand", "l_hand"]))
+    return np.linalg.norm(hands[:, 0] - hands[:, 1], axis=1)
+
+
 @functools.cache
 def bench_human() -> Any:
     """bench/human.py, the motion bench's own figures (LDLJ, peaks), loaded as a module."""

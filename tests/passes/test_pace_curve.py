@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import bench_human, compile_on, reach_on_frames
+from conftest import bench_human, compile_on, hands_apart, reach_on_frames
 
 from mtlc.passes import pace
 from mtlc.passes.profile import bell_ldlj
@@ -68,21 +68,13 @@ MODULE = ROOT / "tests" / "data" / "pace_curve" / "c02_module_into_slot.mtask"
 def _module_move(manikin: tuple[str, int]) -> tuple[float, float, float]:
     """Both hands' worst LDLJ over the carried module's move into its slot (line 20), their
     worst distance to the slot at its end and how much the module's width changed (m)."""
-    from mtlc.body import forward, site_positions
-
     ir, _ = compile_on(MODULE, manikin)
-    fr = ir.frames
-    assert fr is not None
     worst, off = 0.0, 0.0
     for hand in ("r_hand", "l_hand"):
         rows, p, dt, to = reach_on_frames(ir, "rack_slot", line=20, effector=hand)
         worst = min(worst, bench_human()._ldlj(p, dt))
         off = max(off, float(np.linalg.norm(p[-1] - np.asarray(to.goal.position))))
-    pose = forward(ir.skeleton, fr.q[rows], fr.root_position[rows], fr.root_rotation[rows],
-                   with_axes=False)  # fmt: skip
-    both = np.asarray(site_positions(ir.skeleton, pose, ["r_hand", "l_hand"]))
-    width = np.linalg.norm(both[:, 0] - both[:, 1], axis=1)
-    return worst, off, float(np.ptp(width))
+    return worst, off, float(np.ptp(hands_apart(ir, rows)))
 
 
 @pytest.mark.parametrize("manikin", [("female", 50), ("male", 95)], ids=["F50", "M95"])

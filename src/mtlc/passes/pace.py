@@ -434,23 +434,19 @@ def _curved_part(goal: FloatArray) -> FloatArray:
 
 def _carried_curve(
     ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Carry, chosen: Frames,
-    u: FloatArray, models: ModelCheck | None,
+    at: FloatArray, u: FloatArray, models: ModelCheck | None,
 ) -> tuple[Frames, FloatArray] | None:  # fmt: skip
-    """A part moved in both hands whose path turns a corner at speed (``_curved``'s test, on
-    the hands of the carried path ``chosen`` at progress ``u``), carried again with its
+    """A part moved in both hands whose path turns a corner at speed (``corner_score``, on
+    the hands ``at`` of the carried path ``chosen`` at progress ``u``), carried again with its
     centre on a curve (``_carried`` with ``bend``): kept, with its progress, where the hands
     then score ``CURVE_GAIN`` better and it goes no deeper behind a site, under the ground,
     into the body or the scene's models; else None. The carried path doubles back where the
     TO's line in along the site's normal starts in the part's own plane (a module pushed into
     its rack slot, LDLJ -8.0 with a perfect bell of speed)."""
+    before = corner_score(at, u)
+    if before is None:
+        return None
     skel = ir.skeleton
-    at = part_site_positions(skel, chosen.q, chosen.root_position, chosen.root_rotation,
-                             m.effectors)  # fmt: skip
-    if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
-        return None
-    before = bell_ldlj(list(at.transpose(1, 0, 2)), u, LDLJ_POINTS)
-    if before >= CURVE_FROM:
-        return None
     bent = _carried(ir, m, body, idx, carry, bend=True)
     at_bent = part_site_positions(skel, bent.q, bent.root_position, bent.root_rotation,
                                   m.effectors)  # fmt: skip
@@ -555,8 +551,10 @@ def reach_path(
     held = [c for c in rigid if both and c.start < m.end - EPS and c.end > m.start + EPS]
     if len(held) == 1 and held[0].start <= m.start + EPS:  # the part moved from where it is
         chosen = _carried(ir, m, body, idx, held[0])
-        u2, _ = progress(ir, m, chosen)
-        bent = _carried_curve(ir, m, body, idx, held[0], chosen, u2, models)
+        at = part_site_positions(ir.skeleton, chosen.q, chosen.root_position,
+                                 chosen.root_rotation, m.effectors)  # fmt: skip
+        u2, _ = progress(ir, m, chosen, at)
+        bent = _carried_curve(ir, m, body, idx, held[0], chosen, at, u2, models)
         if bent is not None:
             chosen, u2 = bent
         return ReachPath(u2, chosen.q[:, idx], carried=True)
@@ -601,6 +599,17 @@ class ModelCheck:
         return float(arms.depth(self.obstacles, pose, path.time).max(initial=-np.inf))
 
 
+def corner_score(at: FloatArray, u: FloatArray) -> float | None:
+    """The hands' worst score (``bell_ldlj``) of a path whose hands are ``at`` (N, H, 3) at
+    progress ``u``, where it is worth making again on a curve: under ``CURVE_FROM`` and at
+    least ``CURVE_MIN_PATH`` long (a press in place: its jerk is the solver's noise, not a
+    corner); else None."""
+    if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
+        return None
+    before = bell_ldlj(list(at.transpose(1, 0, 2)), u, LDLJ_POINTS)
+    return before if before < CURVE_FROM else None
+
+
 def _curved(
     ir: MotionIR, m: Movement, chosen: Frames, at: FloatArray, u: FloatArray, idx: list[int],
     allowed: float, models: ModelCheck | None,
@@ -618,10 +627,8 @@ def _curved(
     (``models``), and scores ``CURVE_GAIN`` better; else None (the path stays as it was)."""
     if not set(m.effectors) <= {"r_hand", "l_hand"}:
         return None
-    if float(np.linalg.norm(np.diff(at, axis=0), axis=-1).sum(axis=0).max()) < CURVE_MIN_PATH:
-        return None  # a press in place: its jerk is the solver's noise, not a corner
-    before = bell_ldlj(list(at.transpose(1, 0, 2)), u, LDLJ_POINTS)
-    if before >= CURVE_FROM:
+    before = corner_score(at, u)
+    if before is None:
         return None
     # the moving hands' arms alone: the trunk as the path has it (solved with the trunk, the
     # curve bobbed the thorax 17 deg out and back, and the joints' share of the progress then

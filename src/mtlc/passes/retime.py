@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -239,21 +240,19 @@ def reach_again(ir: MotionIR, m: Movement, fps: float, held: list[Carry]) -> boo
     sides = tuple(sorted({h[0] for h in hands}))
     check = Check(skel, ir.ground, fps, t, was, names, was_p, n, sides, before)
     together = any(c.start < m.end - EPS and c.end > m.start + EPS for c in held)
-    tries: list[tuple[Body, list[int]]] = []
+    tries: list[tuple[Body, list[int], bool]] = []  # the poses, the joints judged, whole body
     if not together:
-        tries.append((was.with_q(retimed(was.q, t, was_p[:, :n], cols)), cols))
+        tries.append((was.with_q(retimed(was.q, t, was_p[:, :n], cols)), cols, False))
     # where the trunk, the pelvis or the other arm made the bend, the whole body runs again
     if _warpable(ir, m):
         moving = np.flatnonzero(np.ptp(was.q, axis=0) > 0.0).tolist()
-        tries.append((warped(was, t, was_p[:, :n], cols), moving))
+        tries.append((warped(was, t, was_p[:, :n], cols), moving, True))
     best: tuple[float, Body] | None = None
-    for body, checked in tries:
+    for body, checked, whole in tries:
         score = check.passes(body, checked)
         if score is None or (best is not None and score <= best[0]):
             continue
-        if body.root_position is not was.root_position and _feet_moved(skel, body) > (
-            _feet_moved(skel, was) + FEET_SLIP
-        ):
+        if whole and _feet_moved(skel, body) > _feet_moved(skel, was) + FEET_SLIP:
             continue
         best = (score, body)
     if best is None:
@@ -279,6 +278,14 @@ class Check:
     sides: tuple[str, ...]
     before: float  # the hands' worst LDLJ as they were
 
+    @cached_property
+    def was_arrival(self) -> float:
+        return _arrival(self.t, self.was_p[:, : self.n], self.fps)
+
+    @cached_property
+    def was_depth(self) -> float:
+        return float(_depths(self.skel, self.was, self.sides).max())
+
     def passes(self, body: Body, cols: list[int]) -> float | None:
         """The re-timed hands' worst LDLJ where ``body`` keeps all of it (``cols``: the
         joints whose speed is judged), else None."""
@@ -292,9 +299,9 @@ class Check:
         # faster
         if _fastest(t, body.q, cols) > max(_fastest(t, self.was.q, cols), PEAK_JOINT_SPEED):
             return None
-        if _arrival(t, p[:, :n], fps) > max(_arrival(t, self.was_p[:, :n], fps), CONTACT_SPEED):
+        if _arrival(t, p[:, :n], fps) > max(self.was_arrival, CONTACT_SPEED):
             return None
-        was = float(_depths(self.skel, self.was, self.sides).max())
+        was = self.was_depth
         if float(_depths(self.skel, body, self.sides).max()) > (
             was + DEEPER_INSIDE if was > 0.0 else DEEPER
         ):

@@ -26,6 +26,7 @@ from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.approach import (
     TOLERANCE,
     _restaters,
+    chain_names,
     groups,
     hand_target,
     held_pose,
@@ -42,7 +43,7 @@ from mtlc.passes.approach import (
     stale_approach,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.state import PoseState, reanchor, solved
+from mtlc.passes.state import TRUNK_DOFS, PoseState, reanchor, solved
 
 MAX_KEYFRAMES = 12
 MAX_ITER = 400
@@ -292,6 +293,24 @@ def _approach_again(
     return PoseState(state.ir)  # the group's keyframes were replaced
 
 
+def own_starts(state: PoseState, segs: list[Segment], q0: FloatArray) -> FloatArray:
+    """The group's start pose ``q0`` (the body when its first contact starts) with each later
+    hand's arm (and clavicle) where that hand is when its own contact starts. Each hand's keyframes are laid
+    on its own window, so its path must start where its approach ended: at the group's start a
+    hand still on its way is at its approach's first keyframe (the state holds a dof's latest
+    keyframe), and a press whose other hand started first began from the hip, 1.2 m below the
+    cover its approach had nearly reached."""
+    skel = state.skel
+    for seg in segs:
+        if seg.start > min(s.start for s in segs) + 1e-9:
+            arm = [
+                n for n in chain_names(skel, [seg.goal.effector], "torso") if n not in TRUNK_DOFS
+            ]
+            idx = [skel.dof_index(n) for n in arm]
+            q0[idx] = state.q_at(seg.start)[idx]
+    return q0
+
+
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
     skel = ir.skeleton
@@ -306,7 +325,7 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         while checked < len(approaches) and (min(s.end for s in approaches[checked]) <= t0 + 1e-9):
             state = _approach_again(ctx, state, approaches[checked], followed)
             checked += 1
-        q0 = state.q_at(t0)
+        q0 = own_starts(state, segs, state.q_at(t0))
         root = state.root_at(t1)
         targets = []
         for seg in segs:

@@ -155,16 +155,20 @@ def test_clearance_of_every_capsule_at_once_is_capsule_by_capsule(
 ) -> None:
     """``capsules.clearance`` (all of a limb's capsules in one array) equals, to the bit, the
     depth of each sample in each capsule taken one capsule at a time (``depth_inside``, the
-    loop it replaced), on random whole-body postures and roots; its directions are unit or
-    zero."""
+    loop it replaced), on random whole-body postures and roots; the deepest sample of each
+    limb and capsule is the exact depth (the closest points of the two axes); its directions
+    are unit or zero."""
     from mtlc.body.capsules import (
         CLEARANCE_MARGIN,
+        COLUMN_SAMPLES,
         LIMB_SAMPLES,
         body_capsules,
         clearance_directions,
+        closest_parameters,
         depth_inside,
         limb_axis,
         limb_radius,
+        segment_distance,
     )
 
     sk, rng, _, q, _ = _postures(seed, pick, "l", n=n)
@@ -172,17 +176,25 @@ def test_clearance_of_every_capsule_at_once_is_capsule_by_capsule(
     pose = forward(sk, q, rng.normal(0.0, 1.0, (n, 3)), rng.normal(0.0, 1.0, (n, 4)))
     for side in ("r", "l"):
         cols = []
+        exact = []
         for limb in side_limbs(side):
             p0, p1 = limb_axis(sk, pose, limb)
-            frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
-            pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
             for cap in body_capsules(sk):
                 a, b = (
                     np.mean([pose.p[:, sk.joint_index(j)] for j in e], axis=0) for e in cap.ends
                 )
+                # the even samples, then the point closest to the capsule's axis
+                s, _ = closest_parameters(p0, p1, a, b)
+                frac = np.concatenate([np.tile(np.linspace(0.0, 1.0, LIMB_SAMPLES), (n, 1)),
+                                       s[:, None]], axis=1)  # fmt: skip
+                pts = p0[:, None, :] + frac[:, :, None] * (p1 - p0)[:, None, :]
                 grow = limb_radius(sk, limb) + CLEARANCE_MARGIN
                 cols.append(depth_inside(pts, a, b, cap.radius + grow))
+                exact.append(cap.radius + grow - segment_distance(p0, p1, a, b))
         want = np.concatenate(cols, axis=1)
+        # the deepest sample of each limb and capsule is the exact depth (the check's)
+        deepest = want.reshape(n, len(exact), COLUMN_SAMPLES).max(axis=2)
+        np.testing.assert_allclose(deepest, np.stack(exact, axis=1), atol=1e-12)
         np.testing.assert_array_equal(clearance(sk, pose, side_limbs(side)), want)
         depth, directions = clearance_directions(sk, pose, side_limbs(side))
         np.testing.assert_array_equal(depth, want)

@@ -111,7 +111,10 @@ def test_no_turn_measures_the_forearm_as_clearance_does() -> None:
     (timeline,) = run_frontend(
         [ROOT / "tests" / "data" / "clearance" / "rack_module.mtask"]
     ).timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 95))
+    # female P99: the clearance pass still turns this arm there (38 deg); female P95's, where the
+    # shoulder once turned 56 deg in a frame, is kept clear by the approach since the clearance
+    # measures the forearm where it is deepest (session 22)
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 99))
     ir = run_motion(timeline, DiagnosticSink(), until="carry")
     assert ir.frames is not None
     f = ir.frames
@@ -131,7 +134,10 @@ def rack() -> tuple[object, object]:
     (timeline,) = run_frontend(
         [ROOT / "tests" / "data" / "clearance" / "rack_module.mtask"]
     ).timelines
-    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 95))
+    # female P99: the clearance pass still turns this arm there (38 deg); female P95's, where the
+    # shoulder once turned 56 deg in a frame, is kept clear by the approach since the clearance
+    # measures the forearm where it is deepest (session 22)
+    timeline = schedule.for_manikin(timeline, ManikinSpec("gb10000_1988", "female", 99))
     before = run_motion(timeline, DiagnosticSink(), until="carry")
     after = run_motion(timeline, DiagnosticSink(), until="clearance")
     return before, after

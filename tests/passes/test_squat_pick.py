@@ -66,5 +66,13 @@ def test_a_touched_overhead_latch_is_not_held_through_the_squat() -> None:
     f = ir.frames
     assert f is not None
     flex = np.degrees(f.q[:, ir.skeleton.dof_index("l_shoulder_flex")])
-    assert flex.max() < 120.0, f"{flex.max():.0f} deg"  # 180 deg before
+    # held on the latch, the shoulder swung up to 180 deg as the body went down; not held, it
+    # goes no higher through the squat than the reach left it (the reach itself ends at 159
+    # deg with the trunk bent 55 deg toward the low latch)
+    (squat,) = [
+        s for s in ir.segments if s.kind == "posture" and s.goal.params["posture"] == "squat"
+    ]
+    during = (f.time >= squat.start) & (f.time <= squat.end)
+    at_start = flex[np.searchsorted(f.time, squat.start)]
+    assert flex[during].max() <= at_start + 1.0, f"{flex[during].max():.0f} deg"
     assert not {"MT0520", "MT0525"} & {d.code for d in sink.items}  # retired codes

@@ -23,8 +23,9 @@ Pure geometry on ``Pose`` arrays: numpy only, vectorised over frames.
 ``self_intersection`` is the check: the depth of the limb's surface in each capsule (the sum of
 the radii minus the distance between the two axes). Avoiding the capsules (``clearance``, used
 by the clearance pass and ``mtlc.body.ik.clearance``) asks ``CLEARANCE_MARGIN`` more, at
-``LIMB_SAMPLES`` points along each limb, so what the solver leaves is outside with room to
-spare, not on the edge of the check.
+``LIMB_SAMPLES`` points along each limb and at the point of its axis closest to each capsule's
+(the deepest), so what the solver leaves is outside with room to spare, not on the edge of
+the check.
 
 ``collision_capsules`` is the other model, the body's **outer** volume against the equipment
 (docs/collision.md): 16 capsules, head, pelvis, abdomen, thorax, and each side's upper arm,
@@ -104,6 +105,10 @@ ARM_LIMBS = (
 LIMB_SAMPLES = 6  # points along a limb's axis, ends included (a forearm: every 5 cm or so)
 SAMPLE_FRACTIONS = np.linspace(0.0, 1.0, LIMB_SAMPLES)  # where along the axis
 SAMPLE_FRACTIONS.setflags(write=False)
+# a limb's samples against each capsule: the even ones, then the point of its axis closest to
+# the capsule's axis (the deepest point: a forearm crossing a thigh between two even samples,
+# 5 cm apart, went 2-5 mm into it while every sample was clear, the fuel filter's male P99)
+COLUMN_SAMPLES = LIMB_SAMPLES + 1
 HAND_BREADTH = "hand_breadth"
 # a limb's radius as a fraction of the hand's breadth (men P50: forearm 30 mm, hand 20 mm)
 LIMB_RADIUS = {"forearm": 0.36, "hand": 0.25}
@@ -289,21 +294,28 @@ def capsule_segments(
 
 
 def segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:
-    """(N,) the closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (each (N, 3)):
-    the closest points' parameters clamped to the segments (Ericson, Real-Time Collision
-    Detection, 5.1.9)."""
+    """(N,) the closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (each (N, 3))."""
+    s, t = closest_parameters(p1, q1, p2, q2)
+    return np.linalg.norm(p1 + s[..., None] * (q1 - p1) - p2 - t[..., None] * (q2 - p2), axis=-1)
+
+
+def closest_parameters(
+    p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """(s, t) (...,) where along segments ``p1``-``q1`` and ``p2``-``q2`` (each (..., 3)) their
+    closest points are, as fractions of each: the parameters clamped to the segments (Ericson,
+    Real-Time Collision Detection, 5.1.9)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.maximum(np.einsum("nc,nc->n", d1, d1), 1e-18)
-    e = np.maximum(np.einsum("nc,nc->n", d2, d2), 1e-18)
-    b, c, f = (np.einsum("nc,nc->n", x, y) for x, y in ((d1, d2), (d1, r), (d2, r)))
+    a = np.maximum(np.einsum("...c,...c->...", d1, d1), 1e-18)
+    e = np.maximum(np.einsum("...c,...c->...", d2, d2), 1e-18)
+    b, c, f = (np.einsum("...c,...c->...", x, y) for x, y in ((d1, d2), (d1, r), (d2, r)))
     denom = a * e - b * b
     s = np.where(denom > 1e-18, np.clip((b * f - c * e) / np.maximum(denom, 1e-18), 0.0, 1.0), 0.0)
     t = (b * s + f) / e
     s = np.where(
         t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s)
     )
-    t = np.clip(t, 0.0, 1.0)
-    return np.linalg.norm(p1 + s[:, None] * d1 - p2 - t[:, None] * d2, axis=-1)
+    return s, np.clip(t, 0.0, 1.0)
 
 
 def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> FloatArray:
@@ -372,9 +384,11 @@ def limbs_of_sides(sides: Collection[str]) -> tuple[Limb, ...]:
 def clearance(
     skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
 ) -> FloatArray:
-    """(N, L·C·S) how far (m) each sample point of each limb's surface is inside each capsule
-    grown by ``margin``: positive where the limb must move out, negative where it is clear.
-    The avoidance's residual; ``self_intersection`` is the check (the same surfaces, exact)."""
+    """(N, L·C·S') how far (m) each sample point of each limb's surface is inside each capsule
+    grown by ``margin`` (``COLUMN_SAMPLES`` a limb and capsule, the last the point closest to
+    the capsule's axis, so the deepest sample is ``self_intersection``'s depth plus the
+    margin): positive where the limb must move out, negative where it is clear. The
+    avoidance's residual; ``self_intersection`` is the check."""
     return _clearance(skel, pose, limbs, margin, directions=False)[0]
 
 
@@ -388,25 +402,24 @@ def segment_clearance(
 ) -> FloatArray:
     """(N, ...) how far (m) the surface of a limb of ``radius`` whose axis runs from ``start``
     to ``end`` (N, ..., 3: several candidate axes per pose) goes into the trunk or a thigh of
-    ``pose`` (N rows) grown by ``margin``: ``clearance``'s measure (its samples, its capsules)
-    of an axis that is not the pose's own, deepest sample and capsule. Positive: inside."""
+    ``pose`` (N rows) grown by ``margin``: ``clearance``'s measure (its capsules, its deepest
+    sample: the point of the axis closest to each capsule's) of an axis that is not the pose's
+    own, deepest capsule. Positive: inside."""
     lead = start.shape[:-1]
-    n = lead[0]
-    pts = start[..., None, :] + SAMPLE_FRACTIONS[:, None] * (end - start)[..., None, :]
-    pts = pts.reshape(n, -1, 3)  # (N, K·S, 3)
-    out = np.full(pts.shape[:2], -np.inf)
+    extra = (1,) * (len(lead) - 1)
+    out = np.full(lead, -np.inf)
     for cap in body_capsules(skel):
-        a, b = _capsule_axis(skel, pose, cap)
-        depth = depth_inside(pts, a, b, cap.radius + radius + margin)
+        a, b = (x.reshape(len(x), *extra, 3) for x in _capsule_axis(skel, pose, cap))
+        depth = cap.radius + radius + margin - segment_distance(start, end, a, b)
         np.maximum(out, depth, out=out)
-    return out.reshape(*lead, LIMB_SAMPLES).max(axis=-1)
+    return out
 
 
 def clearance_directions(
     skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
 ) -> tuple[FloatArray, FloatArray]:
-    """``clearance`` (N, L·C·S) and each column's derivative by its sample point
-    (N, L·C·S, 3): minus the unit direction from the capsule axis's closest point to the
+    """``clearance`` (N, L·C·S') and each column's derivative by its sample point
+    (N, L·C·S', 3) (``sample_fractions``: where the samples are): minus the unit direction from the capsule axis's closest point to the
     sample (the closest point slides along the axis, at right angles to that direction, so it
     adds nothing; zero on the axis). The avoidance's residual and what its analytic Jacobian
     needs, from one pass over the samples."""
@@ -415,13 +428,31 @@ def clearance_directions(
     return depth, direction
 
 
+def sample_fractions(skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...]) -> FloatArray:
+    """(N, L, C, S') where along each limb's axis (0 at its start, 1 at its end) its samples
+    against each capsule are: ``SAMPLE_FRACTIONS``, then the point closest to the capsule's
+    axis (``COLUMN_SAMPLES``): ``clearance``'s columns in order."""
+    caps = body_capsules(skel)
+    ends = [_capsule_axis(skel, pose, cap) for cap in caps]
+    a, b = np.stack([e[0] for e in ends], axis=1), np.stack([e[1] for e in ends], axis=1)
+    return np.stack([_fractions(*limb_axis(skel, pose, limb), a, b) for limb in limbs], axis=1)
+
+
+def _fractions(p0: FloatArray, p1: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """(N, C, S') a limb's sample fractions against capsules of axes ``a``-``b`` (N, C, 3)."""
+    n, c = a.shape[:2]
+    s, _ = closest_parameters(p0[:, None], p1[:, None], a, b)
+    return np.concatenate([np.broadcast_to(SAMPLE_FRACTIONS, (n, c, LIMB_SAMPLES)),
+                           s[..., None]], axis=-1)  # fmt: skip
+
+
 def _clearance(
     skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float, directions: bool
 ) -> tuple[FloatArray, FloatArray | None]:
     """``clearance`` (and its directions), every capsule of a limb at once: the same
-    arithmetic, number for number, as ``depth_inside`` capsule by capsule."""
+    arithmetic, number for number, as ``depth_inside`` capsule by capsule at the points
+    ``sample_fractions`` places."""
     caps = body_capsules(skel)
-    frac = SAMPLE_FRACTIONS
     ends = [_capsule_axis(skel, pose, cap) for cap in caps]
     a = np.stack([e[0] for e in ends], axis=1)[:, :, None, :]  # (N, C, 1, 3)
     d = np.stack([e[1] - e[0] for e in ends], axis=1)[:, :, None, :]
@@ -431,8 +462,9 @@ def _clearance(
     dirs: list[FloatArray] = []
     for limb in limbs:
         p0, p1 = limb_axis(skel, pose, limb)
-        pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
-        rel = pts[:, None] - a  # (N, C, S, 3)
+        frac = _fractions(p0, p1, a[:, :, 0], a[:, :, 0] + d[:, :, 0])  # (N, C, S')
+        pts = p0[:, None, None, :] + frac[..., None] * (p1 - p0)[:, None, None, :]
+        rel = pts - a  # (N, C, S', 3)
         t = np.clip(np.einsum("ncsx,ncsx->ncs", rel, d) / length2, 0.0, 1.0)
         away = rel - t[..., None] * d
         dist = np.linalg.norm(away, axis=-1)

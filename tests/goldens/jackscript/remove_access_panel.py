@@ -2742,58 +2742,55 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=53.096726, duration=0.633339)
     human.KeyJoints(53.1, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.861, 34.971, -9.757), 'right_elbow': (91.034, 24.925),
-        'right_wrist': (-16.594, -18.207), 'left_shoulder': (88.233, -28.982, 15.117),
-        'left_elbow': (22.656, 17.987), 'left_wrist': (-0.051, -5.348),
+        'right_shoulder': (33.862, 34.971, -9.756), 'right_elbow': (91.034, 24.925),
+        'right_wrist': (-16.593, -18.206), 'left_shoulder': (88.233, -28.98, 15.122),
+        'left_elbow': (22.659, 17.986), 'left_wrist': (-0.052, -5.349),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (27.641, 32.321, -8.717), 'right_elbow': (93.565, 25.223),
-        'right_wrist': (-17.031, -17.41), 'left_shoulder': (75.654, -26.715, 20.133),
-        'left_elbow': (36.022, 16.067), 'left_wrist': (-10.285, -3.743),
+        'right_shoulder': (27.65, 32.317, -8.708), 'right_elbow': (93.572, 25.223),
+        'right_wrist': (-17.029, -17.406), 'left_shoulder': (75.654, -26.69, 20.184),
+        'left_elbow': (36.046, 16.053), 'left_wrist': (-10.298, -3.755),
     })
     human.KeyJoints(53.3, {
-        'right_shoulder': (11.316, 26.205, -7.111), 'right_elbow': (101.096, 25.841),
-        'right_wrist': (-18.678, -15.662), 'left_shoulder': (53.704, -21.759, 30.219),
-        'left_elbow': (57.088, 12.074), 'left_wrist': (-30.787, -1.335),
+        'right_shoulder': (11.318, 26.201, -7.106), 'right_elbow': (101.123, 25.842),
+        'right_wrist': (-18.68, -15.655), 'left_shoulder': (53.73, -21.673, 30.357),
+        'left_elbow': (57.139, 12.036), 'left_wrist': (-30.812, -1.37),
     })
     human.KeyJoints(53.4, {
-        'right_shoulder': (-11.064, 17.004, -3.446), 'right_elbow': (109.957, 26.529),
-        'right_wrist': (-20.572, -13.677), 'left_shoulder': (29.491, -15.175, 40.957),
-        'left_elbow': (78.724, 7.631), 'left_wrist': (-52.903, 0.911),
+        'right_shoulder': (-11.079, 17.003, -3.451), 'right_elbow': (109.986, 26.53),
+        'right_wrist': (-20.579, -13.672), 'left_shoulder': (29.58, -15.013, 41.171),
+        'left_elbow': (78.782, 7.571), 'left_wrist': (-52.924, 0.847),
     })
     human.KeyJoints(53.5, {
-        'right_shoulder': (-29.477, 7.037, 3.91), 'right_elbow': (112.269, 26.903),
-        'right_wrist': (-20.707, -12.812), 'left_shoulder': (9.24, -6.255, 49.492),
-        'left_elbow': (94.684, 3.962), 'left_wrist': (-68.916, 2.473),
+        'right_shoulder': (-29.486, 7.038, 3.908), 'right_elbow': (112.277, 26.904),
+        'right_wrist': (-20.71, -12.81), 'left_shoulder': (9.337, -6.071, 49.681),
+        'left_elbow': (94.734, 3.946), 'left_wrist': (-68.842, 2.395),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.6, {
-        'right_shoulder': (-37.767, 0.321, 11.592), 'right_elbow': (110.546, 26.668),
-        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.265, 8.746, 56.575),
-        'left_elbow': (102.754, 7.026), 'left_wrist': (-70.0, 6.325),
+        'right_shoulder': (-37.769, 0.322, 11.591), 'right_elbow': (110.547, 26.668),
+        'right_wrist': (-19.402, -12.714), 'left_shoulder': (0.621, 9.15, 57.095),
+        'left_elbow': (102.756, 7.027), 'left_wrist': (-70.0, 6.318),
     })
     human.KeyJoints(53.7, {
         'right_shoulder': (-40.293, -1.555, 14.427), 'right_elbow': (110.616, 26.535),
-        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-2.264, 13.707, 57.724),
-        'left_elbow': (104.393, 10.592), 'left_wrist': (-70.0, 9.986),
+        'right_wrist': (-18.945, -12.512), 'left_shoulder': (-1.172, 14.868, 59.537),
+        'left_elbow': (105.145, 9.387), 'left_wrist': (-70.0, 8.547),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.730065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=53.730065, duration=0.072)
-    human.KeyJoints(53.8, {
-        'left_shoulder': (-1.402, 14.743, 59.166), 'left_elbow': (104.837, 9.997),
-        'left_wrist': (-70.0, 9.229),
-    })
+    human.KeyJoints(53.8, {'left_shoulder': (-0.736, 15.424, 60.274)})
     human.KeyRoot(53.802065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(53.802065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-1.304, 14.84, 59.292), 'left_elbow': (104.809, 10.048),
-        'left_wrist': (-70.0, 9.277), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-0.681, 15.478, 60.355), 'left_elbow': (105.366, 9.135),
+        'left_wrist': (-70.0, 8.236), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

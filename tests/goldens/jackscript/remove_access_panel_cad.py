@@ -2638,44 +2638,44 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
-        'right_shoulder': (32.834, 37.353, -9.633), 'right_elbow': (90.776, 22.837),
+        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.776, 22.837),
         'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.75, -29.215, 14.722),
-        'left_elbow': (20.433, 18.166), 'left_wrist': (0.906, -5.54),
+        'left_elbow': (20.434, 18.165), 'left_wrist': (0.906, -5.54),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.743, 35.987, -9.048), 'right_elbow': (91.379, 22.868),
-        'right_wrist': (-12.541, -14.333), 'left_shoulder': (83.102, -28.039, 15.609),
-        'left_elbow': (27.19, 17.668), 'left_wrist': (0.211, -4.183),
+        'right_shoulder': (29.746, 35.986, -9.046), 'right_elbow': (91.379, 22.868),
+        'right_wrist': (-12.54, -14.332), 'left_shoulder': (83.101, -28.034, 15.623),
+        'left_elbow': (27.194, 17.656), 'left_wrist': (0.201, -4.185),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (19.975, 31.61, -7.106), 'right_elbow': (93.772, 22.959),
-        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.644, -24.751, 18.135),
-        'left_elbow': (43.257, 16.183), 'left_wrist': (-1.721, -0.55),
+        'right_shoulder': (19.98, 31.607, -7.101), 'right_elbow': (93.776, 22.959),
+        'right_wrist': (-12.653, -13.507), 'left_shoulder': (65.647, -24.729, 18.186),
+        'left_elbow': (43.267, 16.14), 'left_wrist': (-1.761, -0.558),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (5.318, 24.374, -3.191), 'right_elbow': (97.717, 23.079),
-        'right_wrist': (-12.816, -12.186), 'left_shoulder': (42.522, -19.647, 21.332),
-        'left_elbow': (62.398, 14.16), 'left_wrist': (-4.47, 3.872),
+        'right_shoulder': (5.317, 24.372, -3.189), 'right_elbow': (97.727, 23.079),
+        'right_wrist': (-12.817, -12.183), 'left_shoulder': (42.538, -19.596, 21.43),
+        'left_elbow': (62.412, 14.075), 'left_wrist': (-4.551, 3.854),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.205, 15.954, 2.932), 'right_elbow': (99.614, 23.158),
-        'right_wrist': (-12.527, -11.142), 'left_shoulder': (20.939, -12.947, 23.551),
-        'left_elbow': (78.02, 12.535), 'left_wrist': (-7.448, 7.522),
+        'right_shoulder': (-8.209, 15.955, 2.932), 'right_elbow': (99.62, 23.158),
+        'right_wrist': (-12.528, -11.14), 'left_shoulder': (20.972, -12.865, 23.68),
+        'left_elbow': (78.027, 12.421), 'left_wrist': (-7.564, 7.497),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-15.58, 9.225, 10.055), 'right_elbow': (100.147, 23.132),
-        'right_wrist': (-11.525, -10.437), 'left_shoulder': (7.288, -4.417, 24.439),
-        'left_elbow': (88.753, 10.857), 'left_wrist': (-11.586, 10.354),
+        'right_shoulder': (-15.581, 9.225, 10.055), 'right_elbow': (100.149, 23.132),
+        'right_wrist': (-11.525, -10.437), 'left_shoulder': (7.335, -4.313, 24.581),
+        'left_elbow': (88.755, 10.743), 'left_wrist': (-11.716, 10.332),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
         'right_shoulder': (-19.628, 6.877, 13.337), 'right_elbow': (103.21, 23.155),
-        'right_wrist': (-11.309, -9.624), 'left_shoulder': (1.226, -1.182, 23.633),
-        'left_elbow': (95.419, 11.186), 'left_wrist': (-12.757, 12.448),
+        'right_wrist': (-11.309, -9.624), 'left_shoulder': (1.276, -1.065, 23.776),
+        'left_elbow': (95.42, 11.076), 'left_wrist': (-12.89, 12.426),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
@@ -2683,7 +2683,7 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
     human.KeyJoints(53.4, {
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
-        'left_shoulder': (0.764, -0.937, 23.571), 'left_elbow': (95.961, 11.215),
+        'left_shoulder': (0.814, -0.819, 23.714), 'left_elbow': (95.962, 11.106),
     })
     human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(53.433901, {
@@ -2691,8 +2691,8 @@ def remove_access_panel_cad():
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'right_wrist': (-11.305, -9.547), 'left_clavicle': (-2.48, 4.095),
-        'left_shoulder': (0.764, -0.937, 23.571), 'left_elbow': (95.961, 11.215),
-        'left_wrist': (-12.846, 12.609), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (0.814, -0.819, 23.714), 'left_elbow': (95.962, 11.106),
+        'left_wrist': (-12.98, 12.586), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

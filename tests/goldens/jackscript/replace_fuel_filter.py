@@ -582,21 +582,21 @@ def replace_fuel_filter():
     })
     human.KeyJoints(10.4, {
         'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
-        'left_shoulder': (32.547, 19.063, 3.89), 'left_elbow': (48.667, 48.398),
-        'left_wrist': (-49.98, 14.815),
+        'left_shoulder': (32.391, 18.948, 3.594), 'left_elbow': (49.036, 48.161),
+        'left_wrist': (-49.182, 14.756),
     })
     human.KeyJoints(10.5, {
         'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
-        'left_shoulder': (16.885, 31.354, 4.02), 'left_elbow': (68.637, 43.51),
-        'left_wrist': (-60.362, 3.242),
+        'left_shoulder': (16.54, 31.061, 3.399), 'left_elbow': (69.321, 43.129),
+        'left_wrist': (-58.718, 3.071),
     })
     human.KeyJoints(10.6, {
-        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-0.277, 28.572, -24.971),
-        'left_elbow': (82.845, 41.709), 'left_wrist': (-56.987, 13.843),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-0.371, 28.25, -25.333),
+        'left_elbow': (83.276, 41.59), 'left_wrist': (-55.678, 13.69),
     })
     human.KeyJoints(10.7, {
-        'head': (14.88, 11.25), 'left_shoulder': (-19.449, 33.503, -43.134),
-        'left_elbow': (89.468, 36.804), 'left_wrist': (-59.616, 11.936),
+        'head': (14.88, 11.25), 'left_shoulder': (-19.458, 33.412, -43.226),
+        'left_elbow': (89.583, 36.837), 'left_wrist': (-59.225, 11.875),
     })
     human.KeyJoints(10.8, {
         'left_shoulder': (-34.647, 35.986, -60.053), 'left_elbow': (92.257, 32.693),

@@ -584,30 +584,30 @@ def replace_fuel_filter_cad():
         'left_wrist': (-45.584, 14.811),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.024, 15.26, 23.942),
-        'left_elbow': (38.16, 45.445), 'left_wrist': (-51.94, 7.567),
+        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.352, 15.921, 26.286),
+        'left_elbow': (38.123, 44.608), 'left_wrist': (-52.596, 6.252),
     })
     human.KeyJoints(10.7, {
         'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
-        'left_shoulder': (27.765, 22.076, 17.275), 'left_elbow': (65.11, 43.618),
-        'left_wrist': (-58.883, -0.765),
+        'left_shoulder': (28.224, 23.426, 19.866), 'left_elbow': (65.129, 43.267),
+        'left_wrist': (-59.933, -2.865),
     })
     human.KeyJoints(10.8, {
         'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
-        'left_shoulder': (8.098, 27.392, 0.234), 'left_elbow': (85.896, 44.56),
-        'left_wrist': (-63.387, -4.668),
+        'left_shoulder': (8.085, 28.894, 2.074), 'left_elbow': (85.97, 44.782),
+        'left_wrist': (-64.512, -6.888),
     })
     human.KeyJoints(10.9, {
-        'left_shoulder': (-11.708, 29.588, -24.364), 'left_elbow': (96.115, 42.409),
-        'left_wrist': (-64.791, -0.679),
+        'left_shoulder': (-12.279, 30.689, -23.348), 'left_elbow': (96.121, 42.801),
+        'left_wrist': (-65.809, -2.621),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-24.197, 33.267, -48.181), 'left_elbow': (97.268, 36.912),
-        'left_wrist': (-64.605, 5.935),
+        'left_shoulder': (-24.932, 33.836, -47.662), 'left_elbow': (97.3, 37.332),
+        'left_wrist': (-65.463, 4.417),
     })
     human.KeyJoints(11.1, {
-        'left_shoulder': (-30.287, 38.612, -64.948), 'left_elbow': (97.448, 32.954),
-        'left_wrist': (-65.275, 8.946),
+        'left_shoulder': (-30.618, 38.754, -64.811), 'left_elbow': (97.461, 33.162),
+        'left_wrist': (-65.661, 8.283),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(11.2, {
@@ -659,15 +659,15 @@ def replace_fuel_filter_cad():
         'spine_lumbar': (59.564, -0.355, -3.336), 'spine_thoracic': (-4.046, 0.104, -18.861),
         'neck': (34.973, -5.344, 65.549), 'right_clavicle': (-9.854, 14.731),
         'right_shoulder': (36.561, -10.309, -74.182), 'right_elbow': (35.736, -30.927),
-        'right_wrist': (65.138, 13.869), 'left_shoulder': (-37.198, -11.332, -25.335),
-        'left_elbow': (138.572, 31.103), 'left_wrist': (-66.811, 8.741),
+        'right_wrist': (65.138, 13.869), 'left_shoulder': (-37.271, -11.178, -25.229),
+        'left_elbow': (138.572, 31.089), 'left_wrist': (-66.947, 8.687),
     })
     human.KeyJoints(12.2, {
         'spine_lumbar': (58.388, -8.173, 1.154), 'spine_thoracic': (-8.327, 4.047, -14.584),
         'neck': (34.542, -8.646, 54.739), 'right_clavicle': (-9.771, 14.517),
         'right_shoulder': (41.981, -17.853, -69.731), 'right_elbow': (34.533, -29.311),
         'right_wrist': (63.924, 12.651), 'left_shoulder': (-38.303, 4.672, -50.548),
-        'left_elbow': (127.856, 31.103),
+        'left_elbow': (127.856, 31.103), 'left_wrist': (-66.811, 8.741),
     })
     human.KeyJoints(12.3, {
         'spine_lumbar': (56.245, -14.119, 4.579), 'spine_thoracic': (-11.548, 7.121, -11.333),

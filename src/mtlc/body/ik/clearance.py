@@ -36,13 +36,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..capsules import (
-    LIMB_SAMPLES,
-    SAMPLE_FRACTIONS,
+    COLUMN_SAMPLES,
     body_capsules,
     clearance,
     clearance_directions,
     limb_radius,
     measured_points,
+    sample_fractions,
     segment_clearance,
     side_limbs,
 )
@@ -282,7 +282,7 @@ def _jacobian(
     (``directions``, from ``_res_directions``; computed here if not given) dotted with the
     sample's motion: (1 - f) of its limb's start's plus f of its end's, a hand's end
     (``limb_axis``: a fixed length short of the fingertip on the rigid hand) that share of the
-    fingertip's and the wrist's. Only the columns inside are computed: a few of the 36."""
+    fingertip's and the wrist's. Only the columns inside are computed: a few of the 42."""
     n, n_d = len(q), len(dofs)
     axes = dof_world_axes(skel, pose, q, dofs)
     origins = pose.p[:, skel.dof_joint[dofs]]
@@ -305,8 +305,8 @@ def _jacobian(
         if directions is None:
             directions = clearance_directions(skel, pose, side_limbs(side))[1]
         limbs = side_limbs(side)
-        n_caps = n_pen // (len(limbs) * LIMB_SAMPLES)
-        limb, _, sample = np.unravel_index(col, (len(limbs), n_caps, LIMB_SAMPLES))
+        n_caps = n_pen // (len(limbs) * COLUMN_SAMPLES)
+        limb, cap, sample = np.unravel_index(col, (len(limbs), n_caps, COLUMN_SAMPLES))
         # the limbs' ends' motion, on the rows with a column inside only
         rows, at = np.unique(row, return_inverse=True)
         sub = Pose(pose.R[rows], pose.p[rows], pose.axes, pose.root)
@@ -318,7 +318,9 @@ def _jacobian(
                 length = np.maximum(length, 1e-9)[:, None, None]
                 share = np.minimum(limb_radius(skel, lb), 0.5 * length) / length
                 moves[:, 2 * i + 1] = (1.0 - share) * moves[:, 2 * i + 1] + share * moves[:, 2 * i]
-        frac = SAMPLE_FRACTIONS[sample][:, None, None]
+        # a sample's motion at its place (the closest point's slides along the limb, but the
+        # distance is least there: sliding changes it by nothing to first order)
+        frac = sample_fractions(skel, sub, limbs)[at, limb, cap, sample][:, None, None]
         motion = (1.0 - frac) * moves[at, 2 * limb] + frac * moves[at, 2 * limb + 1]
         pen[row, col] = pb.clear_weight * np.einsum("kx,kdx->kd", directions[row, col], motion)
     rest = np.broadcast_to(REST_WEIGHT * np.eye(n_d), (n, n_d, n_d))

@@ -363,6 +363,11 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
 
     files: dict[Path, str | bytes] = {}
     measured: list[tuple[str, Metrics]] = []
+    clip = getattr(args, "walk_clip", None)
+    if clip is not None and not program.sink.has_errors and args.target != "timeline":
+        from mtlc.passes.bvh_clip import checked_clip
+
+        checked_clip(clip, program.sink)  # MT0503 before any motion is solved
     if not program.sink.has_errors:
         if args.target == "timeline":
             named = {

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.diagnostics import Span
+from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.locomotion import DetectedStep, Gait, gait_of, segment_steps
@@ -489,6 +489,23 @@ def adapt(
     return m, float(np.percentile(np.linalg.norm(goal - final, axis=-1), 95))
 
 
+def checked_clip(path: Path, sink: DiagnosticSink) -> ClipAnalysis | None:
+    """The clip's analysis, or None with MT0503 reported: ``compile`` asks before any motion
+    (a clip it cannot use fails the compile, which then need not solve the motion first)."""
+    try:
+        return analyse(path)
+    except ClipError as exc:
+        span = Span(str(path), exc.line, 1, exc.line, 1) if exc.line else Span.whole_file(str(path))
+        sink.report(
+            "MT0503",
+            f"walking clip `{path}`: {exc}",
+            span,
+            help="give a BVH walking clip (HIERARCHY and MOTION, feet named like "
+            "LeftFoot/RightFoot) with at least two steps, or leave out --walk-clip",
+        )
+        return None
+
+
 def gait_for_walk(ir: MotionIR, ctx: PassContext, seg: Segment, base: Gait) -> Gait:
     """The walk's gait from the supplied clip, adapted to the task's step (claims 2–4).
 
@@ -501,22 +518,7 @@ def gait_for_walk(ir: MotionIR, ctx: PassContext, seg: Segment, base: Gait) -> G
     assert path is not None
     cached = ctx.cache.get("walk_clip")
     if cached is None:
-        try:
-            cached = analyse(path)
-        except ClipError as exc:
-            span = (
-                Span(str(path), exc.line, 1, exc.line, 1)
-                if exc.line
-                else Span.whole_file(str(path))
-            )
-            ctx.sink.report(
-                "MT0503",
-                f"walking clip `{path}`: {exc}",
-                span,
-                help="give a BVH walking clip (HIERARCHY and MOTION, feet named like "
-                "LeftFoot/RightFoot) with at least two steps, or leave out --walk-clip",
-            )
-            cached = False
+        cached = checked_clip(path, ctx.sink) or False
         ctx.cache["walk_clip"] = cached
     if cached is False:
         return base

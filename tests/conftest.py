@@ -20,7 +20,11 @@ import contextlib
 import copy
 import difflib
 import functools
+import hashlib
+import os
+import pickle
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -139,13 +143,56 @@ def _run_in_repo(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("NO_COLOR", "1")
 
 
+COMPILES = ROOT / ".pytest_cache" / "mtlc-compiles"  # the examples' compiles, shared by workers
+
+
+@functools.cache
+def _code_key() -> str:
+    """A digest of everything a compile reads besides its task file: the package's files, the
+    standard library, the grammar, Python's and numpy's versions. A cached compile made by
+    other code is never read."""
+    digest = hashlib.sha256(f"{sys.version} {np.__version__}".encode())
+    for base in (ROOT / "src" / "mtlc", ROOT / "stdlib", ROOT / "grammar"):
+        for file in sorted(base.rglob("*")):
+            if file.is_file() and "__pycache__" not in file.parts:
+                digest.update(file.relative_to(ROOT).as_posix().encode() + b"\0")
+                digest.update(file.read_bytes())
+    return digest.hexdigest()[:24]
+
+
 @functools.cache
 def _compiled_once(path: Path) -> Compiled:
+    """The example's compile, made once for the whole run: the test workers share it through
+    a file (``COMPILES``, keyed by ``_code_key`` and the task file's bytes; a worker that
+    finds another compiling it waits for it). Compiles on one machine are identical to the
+    bit, so a shared one is what each worker would have made."""
     from mtlc.frontend import FrontendOptions
     from mtlc.preview.compile import compile_motions
 
-    with contextlib.chdir(ROOT):  # display paths relative to the checkout, as the tests run
-        return compile_motions([path.relative_to(ROOT)], FrontendOptions())
+    def compile_it() -> Compiled:
+        with contextlib.chdir(ROOT):  # display paths relative to the checkout, as tests run
+            return compile_motions([path.relative_to(ROOT)], FrontendOptions())
+
+    try:
+        import fcntl
+    except ImportError:  # no file locks (Windows): each worker compiles its own
+        return compile_it()
+    key = hashlib.sha256(path.read_bytes() + path.name.encode()).hexdigest()[:16]
+    COMPILES.mkdir(parents=True, exist_ok=True)
+    stored = COMPILES / f"{_code_key()}-{path.stem}-{key}.pickle"
+    with open(stored.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        for stale in COMPILES.glob("*"):  # made by other code: never read again
+            if not stale.name.startswith(_code_key()):
+                stale.unlink(missing_ok=True)
+        if stored.exists():
+            with contextlib.suppress(Exception):  # unreadable: compiled again below
+                return pickle.loads(stored.read_bytes())  # type: ignore[no-any-return]
+        compiled = compile_it()
+        partial = stored.with_suffix(f".{os.getpid()}.part")
+        partial.write_bytes(pickle.dumps(compiled))
+        partial.replace(stored)
+        return compiled
 
 
 def compiled_example(path: Path) -> Compiled:

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES, ROOT
+from conftest import EXAMPLES, ROOT, compiled_example
 
 from mtlc.body import build_manikin, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
-from mtlc.ir.model import GoalSpec, Keyframes, Provenance, Segment, SourceRef
+from mtlc.ir.model import GoalSpec, Keyframes, MotionIR, Provenance, Segment, SourceRef
 from mtlc.ir.serialize import round_array, to_json
 from mtlc.passes import MotionOptions, lower, run_motion
 from mtlc.passes.interpolate import correct_base, interpolate_naive, lowest_foot_point
@@ -24,6 +24,13 @@ def compile_ir(path: Path, **options):
     (timeline,) = program.timelines
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions(**options)), sink
+
+
+def example_ir(path: Path) -> MotionIR:
+    """The example compiled with the default options, once per test process (the tests
+    below read it and do not change it; ``compiled_example`` hands each a copy)."""
+    (ir,) = compiled_example(path).motions
+    return ir
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +45,7 @@ def docs_fk() -> dict:
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_docs_forward_kinematics_matches_mtlc(path: Path, docs_fk: dict) -> None:
-    ir, _ = compile_ir(path)
+    ir = example_ir(path)
     doc = json.loads(to_json(ir))
     f = doc["frames"]
     skel = ir.skeleton
@@ -60,7 +67,7 @@ def test_docs_forward_kinematics_matches_mtlc(path: Path, docs_fk: dict) -> None
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_ir_json_is_complete_and_consistent(path: Path) -> None:
-    ir, _ = compile_ir(path)
+    ir = example_ir(path)
     doc = json.loads(to_json(ir))
     assert doc["format"] == "mtlc-ir" and doc["version"] == 1
     joints = doc["manikin"]["joints"]
@@ -91,7 +98,7 @@ def test_ir_json_is_complete_and_consistent(path: Path) -> None:
 
 @pytest.mark.parametrize("path", EXAMPLES[:2], ids=lambda p: p.name)
 def test_ir_json_is_byte_identical(path: Path) -> None:
-    assert to_json(compile_ir(path)[0]) == to_json(compile_ir(path)[0])
+    assert to_json(compile_ir(path)[0]) == to_json(example_ir(path))  # two compiles
 
 
 def test_fps_sets_the_frame_rate() -> None:
@@ -162,7 +169,7 @@ def test_base_correction_keeps_a_squat_out_of_the_floor() -> None:
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_no_body_point_below_the_ground(path: Path) -> None:
-    ir, _ = compile_ir(path)
+    ir = example_ir(path)
     assert lowest_foot_point(ir, ir.frames).min() >= ir.ground - 1e-3
 
 

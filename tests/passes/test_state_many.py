@@ -25,14 +25,21 @@ def solved_ir(request: pytest.FixtureRequest) -> MotionIR:
     return run_motion(prog.timelines[0], prog.sink, until="gaze")
 
 
+KEY_TIMES = 400  # keyframe times probed at most (evenly spread): the wrench's strokes have 4,000
+
+
 def probe_times(ir: MotionIR) -> np.ndarray:
-    """Every segment's ends and keyframe times, a hair either side, and an even grid."""
+    """Every segment's ends and up to ``KEY_TIMES`` keyframe times, a hair either side, and
+    an even grid."""
     times = [0.0, ir.duration]
+    keys: list[float] = []
     for seg in ir.segments:
         times += [seg.start, seg.end]
         if seg.keyframes is not None:
-            times += [float(t) for t in seg.keyframes.time]
-    base = np.array(times)
+            keys += [float(t) for t in seg.keyframes.time]
+    keys = sorted(set(keys))
+    pick = np.unique(np.linspace(0, len(keys) - 1, min(len(keys), KEY_TIMES)).round().astype(int))
+    base = np.array(times + [keys[i] for i in pick])
     grid = np.linspace(0.0, ir.duration, 301)
     return np.concatenate([base, base - 1e-9, base + 1e-9, base + 2e-9, grid])
 

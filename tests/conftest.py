@@ -25,9 +25,10 @@ import os
 import pickle
 import re
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import pytest
@@ -39,6 +40,7 @@ if TYPE_CHECKING:
     from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parent.parent
+T = TypeVar("T")
 GOLDENS = Path(__file__).resolve().parent / "goldens"
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 STDLIB = sorted((ROOT / "stdlib").glob("*.mtask"))
@@ -160,12 +162,40 @@ def _code_key() -> str:
     return digest.hexdigest()[:24]
 
 
+def shared(name: str, folder: Path, make: Callable[[], T]) -> T:
+    """``make()``, made once for the whole run: the test workers share it through a file
+    (``COMPILES``) keyed by ``_code_key``, ``name`` and every file under ``folder`` (a task
+    file's folder: the task, the files it uses, its models); a worker that finds another making
+    it waits for it. Compiles on one machine are identical to the bit, so a shared one is what
+    each worker would have made."""
+    try:
+        import fcntl
+    except ImportError:  # no file locks (Windows): each worker makes its own
+        return make()
+    digest = hashlib.sha256(name.encode())
+    for file in sorted(folder.rglob("*")):
+        if file.is_file() and "__pycache__" not in file.parts:
+            digest.update(file.relative_to(folder).as_posix().encode() + b"\0" + file.read_bytes())
+    COMPILES.mkdir(parents=True, exist_ok=True)
+    stored = COMPILES / f"{_code_key()}-{digest.hexdigest()[:24]}.pickle"
+    with open(stored.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        for stale in COMPILES.glob("*"):  # made by other code: never read again
+            if not stale.name.startswith(_code_key()):
+                stale.unlink(missing_ok=True)
+        if stored.exists():
+            with contextlib.suppress(Exception):  # unreadable: made again below
+                return pickle.loads(stored.read_bytes())  # type: ignore[no-any-return]
+        made = make()
+        partial = stored.with_suffix(f".{os.getpid()}.part")
+        partial.write_bytes(pickle.dumps(made))
+        partial.replace(stored)
+        return made
+
+
 @functools.cache
 def _compiled_once(path: Path) -> Compiled:
-    """The example's compile, made once for the whole run: the test workers share it through
-    a file (``COMPILES``, keyed by ``_code_key`` and the task file's bytes; a worker that
-    finds another compiling it waits for it). Compiles on one machine are identical to the
-    bit, so a shared one is what each worker would have made."""
+    """The example compiled with the default options (``shared``: once for the whole run)."""
     from mtlc.frontend import FrontendOptions
     from mtlc.preview.compile import compile_motions
 
@@ -173,26 +203,7 @@ def _compiled_once(path: Path) -> Compiled:
         with contextlib.chdir(ROOT):  # display paths relative to the checkout, as tests run
             return compile_motions([path.relative_to(ROOT)], FrontendOptions())
 
-    try:
-        import fcntl
-    except ImportError:  # no file locks (Windows): each worker compiles its own
-        return compile_it()
-    key = hashlib.sha256(path.read_bytes() + path.name.encode()).hexdigest()[:16]
-    COMPILES.mkdir(parents=True, exist_ok=True)
-    stored = COMPILES / f"{_code_key()}-{path.stem}-{key}.pickle"
-    with open(stored.with_suffix(".lock"), "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        for stale in COMPILES.glob("*"):  # made by other code: never read again
-            if not stale.name.startswith(_code_key()):
-                stale.unlink(missing_ok=True)
-        if stored.exists():
-            with contextlib.suppress(Exception):  # unreadable: compiled again below
-                return pickle.loads(stored.read_bytes())  # type: ignore[no-any-return]
-        compiled = compile_it()
-        partial = stored.with_suffix(f".{os.getpid()}.part")
-        partial.write_bytes(pickle.dumps(compiled))
-        partial.replace(stored)
-        return compiled
+    return shared(f"compile_motions {path.name}", path.parent, compile_it)
 
 
 def compiled_example(path: Path) -> Compiled:

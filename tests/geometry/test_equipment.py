@@ -25,6 +25,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 sys.path.insert(0, str(ROOT / "tests"))
 
 import motion  # noqa: E402  (bench/motion.py: forward kinematics from the IR JSON alone)
+from conftest import shared  # noqa: E402
 
 from mtlc.cli import main as mtlc_main  # noqa: E402
 
@@ -53,6 +54,16 @@ BAR = "    box bar size (60, 4, 4) cm at (0, 95, 72) cm\n"
 
 
 def compile_ir(path: Path, manikin: str, out: Path) -> tuple[dict, list[dict]]:
+    """The IR JSON and the diagnostics ``mtlc compile --target ir`` prints; an example's
+    compile for a manikin is made once for the whole run (``conftest.shared``: this module and
+    test_penetration ask for the same ones)."""
+    if path.parent == ROOT / "examples":
+        return shared(f"cli ir {path.name} {manikin}", path.parent,
+                      lambda: _compile_ir(path, manikin, out))  # fmt: skip
+    return _compile_ir(path, manikin, out)
+
+
+def _compile_ir(path: Path, manikin: str, out: Path) -> tuple[dict, list[dict]]:
     buf = io.StringIO()
     argv = ["compile", str(path), "--manikin", manikin, "--target", "ir", "-o", str(out),
             "--format", "json"]  # fmt: skip

@@ -23,6 +23,7 @@ import numpy as np
 from mtlc.geometry.model import FloatArray, IntArray, SceneModel
 
 EPS = 1e-12  # a ray parallel to a triangle's plane
+EDGE = 1e-9  # barycentric slack: a ray through a seam between two triangles meets them
 CHUNK = 1 << 20  # rays x triangles tested at once (about 100 MB of float64 temporaries)
 
 
@@ -122,5 +123,7 @@ class RayScene:
         q = np.cross(s, e1[None, :, :])
         v = np.einsum("rk,rtk->rt", d, q) * inv
         t = np.einsum("tk,rtk->rt", e2, q) * inv
-        inside = ok & (u >= 0) & (v >= 0) & (u + v <= 1)
+        # a ray along the edge two triangles share meets each at u or v = 0 give or take the
+        # rounding, and missed both: it went through a plate at the seam of its triangles
+        inside = ok & (u >= -EDGE) & (v >= -EDGE) & (u + v <= 1 + EDGE)
         return np.where(inside, t, np.inf)

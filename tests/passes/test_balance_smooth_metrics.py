@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compiled_example
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -408,13 +409,13 @@ _codes: dict[Path, set[str]] = {}
 
 
 def compiled(path: Path) -> list[tuple[str, Metrics]]:
+    """The example's metrics per task, from its compile the test run shares
+    (``conftest.compiled_example``), and the codes it reported."""
     if path not in _compiled:
-        program = run_frontend([path])
-        assert not program.sink.has_errors
-        _compiled[path] = [
-            (t.task, compute_metrics(run_motion(t, program.sink))) for t in program.timelines
-        ]
-        _codes[path] = {d.code for d in program.sink.items}
+        done = compiled_example(path)
+        assert done.ok
+        _compiled[path] = [(ir.task, compute_metrics(ir)) for ir in done.motions]
+        _codes[path] = {d.code for d in done.program.sink.items}
     return _compiled[path]
 
 

@@ -6,9 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from conftest import compiled_example
 
-from mtlc.frontend import run_frontend
-from mtlc.passes import run_motion
 from mtlc.passes.interpolate import _held_curve, track
 from mtlc.passes.joint_speed import speed_limited
 
@@ -30,8 +29,7 @@ def test_a_dof_comes_to_rest_at_its_last_keyframe() -> None:
 
 
 def test_the_drains_valve_turns_stay_under_12_deg_a_frame() -> None:
-    program = run_frontend([ROOT / "examples" / "drain_hydraulic_reservoir.mtask"])
-    ir = run_motion(program.timelines[0], program.sink)
+    (ir,) = compiled_example(ROOT / "examples" / "drain_hydraulic_reservoir.mtask").motions
     frames = ir.frames
     assert frames is not None and frames.fps == 30.0
     d = ir.skeleton.dof_index("r_elbow_pro")

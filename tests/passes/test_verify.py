@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import compiled_example
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -374,10 +375,10 @@ def test_runs_merge_close_failures() -> None:
 
 def test_one_shortfall_number_in_compile_and_metrics(tmp_path: Path) -> None:
     """The avionics handle: the number in MT0501 is the verification's, and the metrics'."""
-    root = Path(__file__).resolve().parents[2]
-    program = run_frontend([root / "examples" / "remove_avionics_unit.mtask"])
-    sink = DiagnosticSink()
-    ir = run_motion(program.timelines[0], sink)
+    done = compiled_example(
+        Path(__file__).resolve().parents[2] / "examples" / "remove_avionics_unit.mtask"
+    )
+    sink, (ir,) = done.program.sink, done.motions
     v = ir.verification
     assert v is not None
     short: dict[tuple[str, str], float] = {}  # the closest over each goal's phases
@@ -427,10 +428,10 @@ EXAMPLE_FINDINGS = {
 
 @pytest.mark.parametrize("name", sorted(EXAMPLE_FINDINGS))
 def test_what_verify_reports_on_each_example(name: str) -> None:
-    root = Path(__file__).resolve().parents[2]
-    program = run_frontend([root / "examples" / f"{name}.mtask"])
-    sink = DiagnosticSink()
-    ir = run_motion(program.timelines[0], sink)
+    # the example's compile the test run shares: its diagnostics are the motion passes' (the
+    # examples check clean)
+    done = compiled_example(Path(__file__).resolve().parents[2] / "examples" / f"{name}.mtask")
+    sink, (ir,) = done.program.sink, done.motions
     found = sorted((d.code, d.span.line) for d in sink.items)
     assert found == sorted(EXAMPLE_FINDINGS[name]), [d.message for d in sink.items]
     assert [(f["code"], f["line"]) for f in ir.verification.findings] == [  # type: ignore[union-attr]

@@ -180,11 +180,17 @@ def _code_key() -> str:
     other code is never read."""
     digest = hashlib.sha256(f"{sys.version} {np.__version__}".encode())
     for base in (ROOT / "src" / "mtlc", ROOT / "stdlib", ROOT / "grammar"):
-        for file in sorted(base.rglob("*")):
-            if file.is_file() and "__pycache__" not in file.parts:
-                digest.update(file.relative_to(ROOT).as_posix().encode() + b"\0")
-                digest.update(file.read_bytes())
+        _add_tree(digest, base, ROOT)
     return digest.hexdigest()[:24]
+
+
+def _add_tree(digest: Any, folder: Path, relative_to: Path) -> None:
+    """Every file under ``folder`` (its path from ``relative_to``, then its bytes) into
+    ``digest``, in a fixed order."""
+    for file in sorted(folder.rglob("*")):
+        if file.is_file() and "__pycache__" not in file.parts:
+            digest.update(file.relative_to(relative_to).as_posix().encode() + b"\0")
+            digest.update(file.read_bytes())
 
 
 def shared(name: str, folder: Path, make: Callable[[], T]) -> T:
@@ -198,9 +204,7 @@ def shared(name: str, folder: Path, make: Callable[[], T]) -> T:
     except ImportError:  # no file locks (Windows): each worker makes its own
         return make()
     digest = hashlib.sha256(name.encode())
-    for file in sorted(folder.rglob("*")):
-        if file.is_file() and "__pycache__" not in file.parts:
-            digest.update(file.relative_to(folder).as_posix().encode() + b"\0" + file.read_bytes())
+    _add_tree(digest, folder, folder)
     COMPILES.mkdir(parents=True, exist_ok=True)
     stored = COMPILES / f"{_code_key()}-{digest.hexdigest()[:24]}.pickle"
     with open(stored.with_suffix(".lock"), "w") as lock:
@@ -237,6 +241,12 @@ def compiled_example(path: Path) -> Compiled:
     compiling every example took 11-13 s of the suite). A copy, so that no module sees what
     another changed."""
     return copy.deepcopy(_compiled_once(path))
+
+
+def example_ir(path: Path) -> MotionIR:
+    """The one task of an example compiled with the default options (``compiled_example``)."""
+    (ir,) = compiled_example(path).motions
+    return ir
 
 
 def compile_on(

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES, ROOT, compiled_example
+from conftest import EXAMPLES, ROOT, example_ir
 
 from mtlc.body import build_manikin, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
-from mtlc.ir.model import GoalSpec, Keyframes, MotionIR, Provenance, Segment, SourceRef
+from mtlc.ir.model import GoalSpec, Keyframes, Provenance, Segment, SourceRef
 from mtlc.ir.serialize import round_array, to_json
 from mtlc.passes import MotionOptions, lower, run_motion
 from mtlc.passes.interpolate import correct_base, interpolate_naive, lowest_foot_point
@@ -24,13 +24,6 @@ def compile_ir(path: Path, **options):
     (timeline,) = program.timelines
     sink = DiagnosticSink()
     return run_motion(timeline, sink, MotionOptions(**options)), sink
-
-
-def example_ir(path: Path) -> MotionIR:
-    """The example compiled with the default options, once per test process (the tests
-    below read it and do not change it; ``compiled_example`` hands each a copy)."""
-    (ir,) = compiled_example(path).motions
-    return ir
 
 
 @pytest.fixture(scope="module")

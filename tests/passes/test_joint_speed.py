@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from conftest import compiled_example
+from conftest import example_ir
 
 from mtlc.passes.interpolate import _held_curve, track
 from mtlc.passes.joint_speed import speed_limited
@@ -29,7 +29,7 @@ def test_a_dof_comes_to_rest_at_its_last_keyframe() -> None:
 
 
 def test_the_drains_valve_turns_stay_under_12_deg_a_frame() -> None:
-    (ir,) = compiled_example(ROOT / "examples" / "drain_hydraulic_reservoir.mtask").motions
+    ir = example_ir(ROOT / "examples" / "drain_hydraulic_reservoir.mtask")
     frames = ir.frames
     assert frames is not None and frames.fps == 30.0
     d = ir.skeleton.dof_index("r_elbow_pro")

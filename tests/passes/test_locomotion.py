@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import compiled_example
+from conftest import example_ir
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -52,10 +52,7 @@ def _compile(name: str, options: MotionOptions | None = None) -> MotionIR:
 @pytest.fixture(scope="module")
 def compiled() -> dict[str, MotionIR]:
     """The walking examples' compiles the test run shares (``conftest.compiled_example``)."""
-    return {
-        name: compiled_example(ROOT / "examples" / f"{name}.mtask").motions[0]
-        for name in WALKING_EXAMPLES
-    }
+    return {name: example_ir(ROOT / "examples" / f"{name}.mtask") for name in WALKING_EXAMPLES}
 
 
 ALL_EXAMPLES = sorted(p.stem for p in (ROOT / "examples").glob("*.mtask"))
@@ -310,11 +307,7 @@ def test_planted_feet_do_not_slide(compiled: dict[str, MotionIR], name: str) -> 
 )
 def test_examples_skate_below_2_cm_per_s(compiled: dict[str, MotionIR], name: str) -> None:
     """Issue 4: the metric (every sole point in contact, all frames) below 2 cm/s."""
-    ir = (
-        compiled[name]
-        if name in compiled
-        else compiled_example(ROOT / "examples" / f"{name}.mtask").motions[0]
-    )
+    ir = compiled[name] if name in compiled else example_ir(ROOT / "examples" / f"{name}.mtask")
     skating = compute_metrics(ir).foot_skating
     assert math.isfinite(skating) and skating < SKATE_LIMIT, (name, skating)
 

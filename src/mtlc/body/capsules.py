@@ -421,8 +421,9 @@ def clearance_directions(
     """``clearance`` (N, L·C·S') and each column's derivative by its sample point
     (N, L·C·S', 3) (``sample_fractions``: where the samples are): minus the unit direction
     from the capsule axis's closest point to the sample (the closest point slides along the
-    axis, at right angles to that direction, so it adds nothing; zero on the axis). The avoidance's residual and what its analytic Jacobian
-    needs, from one pass over the samples."""
+    axis, at right angles to that direction, so it adds nothing; zero on the axis). The
+    avoidance's residual and what its analytic Jacobian needs, from one pass over the
+    samples."""
     depth, direction = _clearance(skel, pose, limbs, margin, directions=True)
     assert direction is not None
     return depth, direction

@@ -295,18 +295,17 @@ def _approach_again(
 
 def own_starts(state: PoseState, segs: list[Segment], q0: FloatArray) -> FloatArray:
     """The group's start pose ``q0`` (the body when its first contact starts) with each later
-    hand's arm (and clavicle) where that hand is when its own contact starts. Each hand's keyframes are laid
-    on its own window, so its path must start where its approach ended: at the group's start a
-    hand still on its way is at its approach's first keyframe (the state holds a dof's latest
-    keyframe), and a press whose other hand started first began from the hip, 1.2 m below the
-    cover its approach had nearly reached."""
+    hand's arm (and clavicle) where that hand is when its own contact starts. Each hand's
+    keyframes are laid on its own window, so its path must start where its approach ended: at
+    the group's start a hand still on its way is at its approach's first keyframe (the state
+    holds a dof's latest keyframe), and a press whose other hand started first began from the
+    hip, 1.2 m below the cover its approach had nearly reached."""
     skel = state.skel
+    first = min(s.start for s in segs)
     for seg in segs:
-        if seg.start > min(s.start for s in segs) + 1e-9:
-            arm = [
-                n for n in chain_names(skel, [seg.goal.effector], "torso") if n not in TRUNK_DOFS
-            ]
-            idx = [skel.dof_index(n) for n in arm]
+        if seg.start > first + 1e-9:
+            arm = chain_names(skel, [seg.goal.effector], "torso")
+            idx = [skel.dof_index(n) for n in arm if n not in TRUNK_DOFS]
             q0[idx] = state.q_at(seg.start)[idx]
     return q0
 

@@ -3,13 +3,20 @@
 # every hand at its goal site at each TO end and every joint at the first, within 1 mm of what the
 # compile's own IR says (docs/bvh.md, "The Blender check").
 #
-# usage: scripts/check_blender.sh [OUT_DIR]    (default: a fresh temporary folder)
+# usage: scripts/check_blender.sh [--compiled] [OUT_DIR]    (default: a fresh temporary folder)
+# --compiled: OUT_DIR already holds every example's BVH and IR (the test suite writes them from
+# the compiles its other tests share); check those instead of compiling the examples again.
 # Installs Blender from the system's packages (apt-get) when `blender` is not on PATH.
 # Exit status: 0 when every file passes, 1 when one fails.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY="${PYTHON:-python3}"
+COMPILED=0
+if [ "${1:-}" = "--compiled" ]; then
+    COMPILED=1
+    shift
+fi
 OUT="${1:-$(mktemp -d -t mtlc-blender.XXXXXX)}"
 mkdir -p "$OUT"
 cd "$ROOT"
@@ -24,6 +31,7 @@ fi
 
 # Compile every example (BVH and IR), then derive Blender's expectations from each IR.
 for mtask in examples/*.mtask; do
+    [ "$COMPILED" -eq 0 ] || break
     compile_log="$OUT/$(basename "$mtask" .mtask).compile.log"
     if ! "$PY" -m mtlc compile "$mtask" --target all -o "$OUT" >"$compile_log" 2>&1; then
         cat "$compile_log" >&2

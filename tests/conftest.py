@@ -249,6 +249,28 @@ def example_ir(path: Path) -> MotionIR:
     return ir
 
 
+@functools.cache
+def _until_once(path: Path, until: str) -> tuple[MotionIR, DiagnosticSink]:
+    """``example_until``'s compile, once for the whole run (``shared``)."""
+    from mtlc.frontend import run_frontend
+    from mtlc.passes import run_motion
+
+    def compile_it() -> tuple[MotionIR, DiagnosticSink]:
+        prog = run_frontend([path])
+        assert prog.timelines, [d.message for d in prog.diagnostics]
+        return run_motion(prog.timelines[0], prog.sink, until=until), prog.sink
+
+    return shared(f"until {until} {path.name}", path.parent, compile_it)
+
+
+def example_until(path: Path, until: str) -> tuple[MotionIR, DiagnosticSink]:
+    """An example's first task compiled with the default options up to the pass ``until``,
+    and the sink with the front end's and the passes' diagnostics: once for the whole run
+    (test_state_many, test_fast_paths, test_posture_ta_to and test_gaze each compiled the
+    examples up to the gaze), and copied for each caller."""
+    return copy.deepcopy(_until_once(path, until))
+
+
 def compile_on(
     path: Path, manikin: ManikinSpec | tuple[str, int] | None = None, *, until: str | None = None
 ) -> tuple[MotionIR, DiagnosticSink]:

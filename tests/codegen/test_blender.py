@@ -3,8 +3,10 @@
 In Blender's own coordinates: frame count and rate, feet on the ground, every hand at its goal
 site at each TO end and every joint at the first, within 1 mm of the compile's own IR. Runs
 where `blender` is on PATH (.ci/run installs it, so CI runs it); elsewhere it skips with one line
-saying what to install. One Blender process for the four examples, one more for wrong
-expectations that must fail.
+saying what to install. One Blender process for the examples, one more for wrong expectations
+that must fail. The examples' BVH and IR are written from the compiles the suite's other tests
+share (``compiled_example``), so the script checks them without compiling them again
+(``--compiled``); `scripts/check_blender.sh` run by hand compiles them itself.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import compiled_example
+
+from mtlc.codegen import GenerateOptions, generate_file
 
 # Local, not from conftest: another conftest module under tests/ can shadow the root one.
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,11 +35,16 @@ pytestmark = pytest.mark.skipif(shutil.which("blender") is None, reason=BLENDER_
 @pytest.fixture(scope="module")
 def checked(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.CompletedProcess]:
     out = tmp_path_factory.mktemp("blender")
+    for path in EXAMPLES:
+        files = generate_file(path.stem, compiled_example(path).motions,
+                              GenerateOptions(targets=("bvh", "ir")))  # fmt: skip
+        for name, text in files.items():
+            (out / name).write_bytes(text.encode("utf-8") if isinstance(text, str) else text)
     env = {**os.environ, "PYTHON": sys.executable}
     if "PYTHONPATH" in os.environ or not _importable_from(sys.executable):
         env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])
     run = subprocess.run(
-        ["bash", str(ROOT / "scripts" / "check_blender.sh"), str(out)],
+        ["bash", str(ROOT / "scripts" / "check_blender.sh"), "--compiled", str(out)],
         capture_output=True,
         text=True,
         env=env,

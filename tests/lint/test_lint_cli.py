@@ -15,9 +15,13 @@ BAY = "tests/lint/data/bay.mtask"
 
 @pytest.fixture
 def program_only(tmp_path: Path) -> Path:
-    """A configuration with the rules that need no motion (keeps these tests fast)."""
+    """A configuration with the rules that need no motion (keeps these tests fast): the
+    program's rules (unused definitions and parameters, unused suppressions), the budgets and
+    the front end's codes. ``MT06`` as a whole would take the motion rules and so compile the
+    motion for both manikins."""
     cfg = tmp_path / "mtlc.toml"
-    cfg.write_text('[lint]\nselect = ["MT06", "MT04", "MT02", "MT03"]\n', encoding="utf-8")
+    select = '["MT0601", "MT0602", "MT0606", "MT04", "MT02", "MT03"]'
+    cfg.write_text(f"[lint]\nselect = {select}\n", encoding="utf-8")
     return cfg
 
 
@@ -69,6 +73,16 @@ def test_folders_are_walked_and_output_goes_to_a_file(program_only: Path, tmp_pa
     )
     assert code == 1
     assert '"uri": "tests/lint/data/bay.mtask"' in out.read_text(encoding="utf-8")
+
+
+def test_the_program_only_configuration_compiles_no_motion(program_only: Path) -> None:
+    """What keeps the tests above fast: none of its codes is one that only the motion finds."""
+    from mtlc.lint.config import load_config
+    from mtlc.lint.engine import MOTION_CODES
+
+    config = load_config(program_only.parent, program_only)
+    assert config.enabled("MT0601") and config.enabled("MT0404")
+    assert not any(config.enabled(code) for code in MOTION_CODES)
 
 
 def test_python_dash_m_runs_the_command() -> None:

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import example_until
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, GoalSpec, MotionIR, Segment
-from mtlc.passes import gaze, run_motion
+from mtlc.passes import gaze
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import (
     _feet_in_root_frame,
@@ -32,9 +32,8 @@ EXAMPLES = ["drain_hydraulic_reservoir", "replace_fuel_filter", "remove_access_p
 
 
 def compiled_until(name: str, until: str) -> tuple[MotionIR, PassContext]:
-    prog = run_frontend([ROOT / "examples" / f"{name}.mtask"])
-    ir = run_motion(prog.timelines[0], prog.sink, until=until)
-    return ir, PassContext(prog.sink)
+    ir, sink = example_until(ROOT / "examples" / f"{name}.mtask", until)
+    return ir, PassContext(sink)
 
 
 # -- gaze --------------------------------------------------------------------------------------

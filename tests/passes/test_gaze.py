@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import example_until
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -113,7 +114,7 @@ def test_head_follows_a_reach_nobody_looked_at(knob: MotionIR) -> None:
 def test_tracking_holds_at_every_contact_keyframe_of_the_examples() -> None:
     """Access panel (5th-percentile woman): the bolts and the handle are within the neck's
     range, so the head is on them at every keyframe of every TO."""
-    ir = compile_until_gaze(ROOT / "examples" / "remove_access_panel.mtask")
+    ir, _ = example_until(ROOT / "examples" / "remove_access_panel.mtask", "gaze")
     for site in ("bolt_upper_left", "bolt_lower_right", "panel_handle"):
         heads = implicit(ir, site)
         assert heads and all(s.result["success"] for s in heads)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import example_until
 
 from mtlc.body import build_manikin, forward, site_direction, site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
@@ -23,10 +24,8 @@ MM = 1e-3
 
 
 def compile_file(path: Path) -> tuple[MotionIR, list]:
-    prog = run_frontend([path])
-    assert prog.timelines, [d.message for d in prog.diagnostics]
-    ir = run_motion(prog.timelines[0], prog.sink, until="gaze")
-    return ir, prog.sink.sorted()
+    ir, sink = example_until(path, "gaze")
+    return ir, sink.sorted()
 
 
 @pytest.fixture(scope="module", params=EXAMPLES, ids=lambda p: p.stem)

@@ -8,10 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import example_until
 
-from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.passes import run_motion
 from mtlc.passes.state import PoseState
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -21,8 +20,8 @@ EXAMPLES = ["drain_hydraulic_reservoir", "replace_fuel_filter", "remove_access_p
 
 @pytest.fixture(scope="module", params=EXAMPLES)
 def solved_ir(request: pytest.FixtureRequest) -> MotionIR:
-    prog = run_frontend([ROOT / "examples" / f"{request.param}.mtask"])
-    return run_motion(prog.timelines[0], prog.sink, until="gaze")
+    ir, _ = example_until(ROOT / "examples" / f"{request.param}.mtask", "gaze")
+    return ir
 
 
 KEY_TIMES = 400  # keyframe times probed at most (evenly spread): the wrench's strokes have 4,000

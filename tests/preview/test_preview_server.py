@@ -226,7 +226,7 @@ def test_serve_command_listens_on_loopback_and_serves_the_page() -> None:
     import urllib.request
 
     proc = subprocess.Popen(
-        [sys.executable, "-m", "mtlc.preview", "serve", "examples/remove_access_panel.mtask",
+        [sys.executable, "-m", "mtlc.preview", "serve", "examples/drain_hydraulic_reservoir.mtask",
          "--port", "0"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
@@ -236,7 +236,7 @@ def test_serve_command_listens_on_loopback_and_serves_the_page() -> None:
         assert match, (line, proc.stderr.read() if proc.poll() is not None and proc.stderr else "")
         with urllib.request.urlopen(match.group(1) + "motion", timeout=30) as reply:
             doc = json.loads(reply.read())
-        assert doc["ir"]["source"]["task"] == "remove_access_panel"
+        assert doc["ir"]["source"]["task"] == "drain_reservoir"
     finally:
         proc.terminate()
         proc.wait(timeout=10)

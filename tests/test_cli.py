@@ -108,6 +108,7 @@ def test_compile_writes_and_is_byte_identical(tmp_path: Path) -> None:
     """The command's file is, to the byte, the IR of a compile made in another process or
     earlier in this one (the suite's shared compile of the example, ``example_ir``)."""
     from mtlc.ir.serialize import to_json
+
     assert main(["compile", FLAGSHIP, "--target", "ir", "-o", str(tmp_path / "a")]) == 0
     (a,) = (tmp_path / "a").iterdir()
     assert a.read_text(encoding="utf-8") == to_json(example_ir(ROOT / FLAGSHIP))

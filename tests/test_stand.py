@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import compile_on
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from mtlc.frontend import run_frontend
@@ -27,6 +27,7 @@ normal = st.one_of(
 
 @settings(max_examples=300, deadline=None)
 @given(coord, height, coord, normal, coord, coord, st.floats(-1.0, 1.0))
+@example(0.0, 0.05, 0.0, None, 0.0, 0.0, 1.0)  # 1.05 - 1.0 > 0.05 in floating point
 def test_a_raised_site_is_stood_in_front_of_and_a_floor_spot_on(
     x: float, h: float, z: float, n: tuple[float, float, float] | None, sx: float, sz: float,
     ground: float,

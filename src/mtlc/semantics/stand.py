@@ -27,6 +27,7 @@ import math
 from collections.abc import Sequence
 
 FLOOR_SPOT = 0.05  # m: a site this high above the ground or lower is a place to stand on
+HEIGHT_EPS = 1e-9  # m: heights within this of FLOOR_SPOT are at it (a difference's rounding)
 WORK_DISTANCE = 0.35  # m, horizontally from the site's ground point to the pelvis
 SIDEWAYS = 0.5  # a normal at least this horizontal (30 deg from vertical) says where "in front" is
 
@@ -39,7 +40,9 @@ def stand_point(
     """Where a walk from ``start`` to the site at ``site`` (its ``normal``) stops, at the
     ground's height, and whether that is in front of the site rather than on it."""
     x, z = float(site[0]), float(site[2])
-    if float(site[1]) - ground <= FLOOR_SPOT:
+    # a site stated FLOOR_SPOT above the ground is a floor spot whatever the subtraction's last
+    # bit (1.05 - 1.0 is 0.05000000000000004: hypothesis found it)
+    if float(site[1]) - ground <= FLOOR_SPOT + HEIGHT_EPS:
         return (x, ground, z), False
     if normal is not None and math.hypot(normal[0], normal[2]) >= SIDEWAYS * math.hypot(*normal):
         dx, dz = float(normal[0]), float(normal[2])

@@ -226,10 +226,11 @@ def solve_along(
 
     def solve_hand(k: int, pose: FloatArray, hand: str, target: FloatArray) -> FloatArray:
         chain = arms[hand]
+        # only the angles are read (``measure=False``): the hands are measured after
         res = solve_ta(
             skel, [Goal(hand, position=target)], pose, dofs=chain,  # type: ignore[arg-type]
             root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
-            restarts=0, null_gain=0.0, tol=SOLVE_TOL,
+            restarts=0, null_gain=0.0, tol=SOLVE_TOL, measure=False,
         )  # fmt: skip
         out = pose.copy()
         out[chain] = res.q[0, chain]

@@ -103,6 +103,7 @@ def solve_ta(
     null_gain: float = 0.05,
     seed: int = 0,
     first_attempt: bool = False,
+    measure: bool = True,
 ) -> IKResult:
     """Solve goals for a batch of targets by damped least squares (TA phase).
 
@@ -112,7 +113,10 @@ def solve_ta(
     ``first_attempt``: also return (``IKResult.first``) the best of the first attempt, what the
     same call with ``restarts=0`` returns, to the bit: the restarts begin where it stops (the
     gaze asks for both; a second solve repeated the first attempt). One row of goals that are
-    not a single position goal only (``_solve_single``).
+    not a single position goal only (``_solve_single``). ``measure=False``: one row of one
+    position goal on a serial chain reports the solver's own error for the angles it returns
+    instead of measuring them afresh by forward kinematics (a fifth of such a call; for callers
+    that measure the pose themselves, such as ``carry.solve_along``'s thousands of points).
     """
     ga = normalise(skel, goals)
     B = ga.batch
@@ -143,7 +147,7 @@ def solve_ta(
         )  # fmt: skip
         q_out = qf.copy()
         q_out[0, model.active] = qb
-        pos, _ = returned_errors(model, ga, q_out)
+        pos = returned_errors(model, ga, q_out)[0] if measure else np.array([_err])
         return IKResult(
             q=q_out,
             position_error=pos,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import forward_part, site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
@@ -119,10 +119,15 @@ def carries(ir: MotionIR) -> list[Carry]:
     return sorted(out, key=lambda c: c.start)
 
 
+HANDS = ("r_hand", "l_hand")
+
+
 def hand_pair(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
-    """(N, 2, 3) the right and the left hand on the rows of ``frames`` with joints ``q``."""
-    pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)  # type: ignore[arg-type]
-    return np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))  # type: ignore[arg-type]
+    """(N, 2, 3) the right and the left hand on the rows of ``frames`` with joints ``q``
+    (``forward_part``: the hands' chains alone, ``forward``'s numbers; the carry's
+    continuation asks for them at every point of a path)."""
+    pose = forward_part(skel, q, frames.root_position[rows], frames.root_rotation[rows], HANDS)  # type: ignore[arg-type]
+    return np.asarray(site_positions(skel, pose, list(HANDS)))  # type: ignore[arg-type]
 
 
 def part_ends(hands: FloatArray, length: float) -> FloatArray:

@@ -66,16 +66,17 @@ GOLDEN_REL = 1e-9
 GOLDEN_ABS = {"ir": 2e-5, "bvh": 2e-3, "jackscript": 2e-3}
 
 
-# The slowest test modules (seconds on the 2-core machine, session 22), run first: the workers
+# The slowest test modules (seconds on the 2-core machine, session 23), run first: the workers
 # take modules in collection order (``--dist loadfile``), and one of these started last kept one
 # worker busy for a minute after the other had finished.
 SLOW_MODULES = {
-    "passes/test_arm_steps.py": 73, "codegen/test_outputs.py": 52, "codegen/test_blender.py": 43,
-    "test_wheel.py": 40, "lint/test_access.py": 35, "preview/test_preview_browser.py": 35,
-    "preview/test_preview_server.py": 35, "passes/test_posture_ta_to.py": 29,
-    "passes/test_locomotion.py": 28, "passes/test_selfcontact.py": 27,
-    "passes/test_fast_paths.py": 27, "test_cli.py": 24, "test_fmt_paths.py": 24,
-    "geometry/test_penetration.py": 23, "lint/test_lint_cli.py": 21,
+    "passes/test_arm_steps.py": 83, "codegen/test_outputs.py": 56,
+    "preview/test_preview_browser.py": 49, "geometry/test_equipment.py": 37,
+    "lint/test_access.py": 36, "passes/test_balance_smooth_metrics.py": 34,
+    "passes/test_selfcontact.py": 34, "preview/test_preview_server.py": 32,
+    "passes/test_locomotion.py": 31, "geometry/test_penetration.py": 29,
+    "test_fmt_paths.py": 29, "test_cli.py": 27, "passes/test_posture_ta_to.py": 23,
+    "passes/test_fast_paths.py": 23, "codegen/test_jackscript.py": 22, "test_wheel.py": 20,
 }  # fmt: skip
 
 

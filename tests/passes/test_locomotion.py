@@ -546,6 +546,24 @@ def clip_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list]:
     return path, steps
 
 
+def test_a_clip_is_analysed_once_per_content(clip_file: tuple[Path, list], tmp_path: Path) -> None:
+    """``compile`` checks the clip before the motion and each walk asks again: one analysis
+    for the same path and bytes; changed bytes are analysed afresh, and a broken clip is
+    refused every time it is asked for."""
+    from mtlc.passes.bvh_clip import ClipError, analyse
+
+    path = tmp_path / "walk.bvh"
+    path.write_bytes(clip_file[0].read_bytes())
+    first = analyse(path)
+    assert analyse(path) is first
+    path.write_bytes(clip_file[0].read_bytes().replace(b"Frame Time:", b"Frame Time: ", 1))
+    assert analyse(path) is not first
+    path.write_text("HIERARCHY\n", encoding="utf-8")
+    for _ in range(2):
+        with pytest.raises(ClipError):
+            analyse(path)
+
+
 def test_bvh_clip_is_read_and_segmented(clip_file: tuple[Path, list]) -> None:
     from mtlc.passes.bvh_clip import clip_steps, forward_clip, read_bvh
 

@@ -22,6 +22,7 @@ nearly all BVH files are; lengths are scaled to metres by the clip's own leg len
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -94,14 +95,17 @@ class BvhClip:
 
 def read_bvh(path: str | Path) -> BvhClip:
     """Parse a BVH file; raises :class:`ClipError` with the offending line."""
+    return parse_bvh(_clip_bytes(path).decode("utf-8", errors="replace"), str(path))
+
+
+def _clip_bytes(path: str | Path) -> bytes:
+    """The clip file's bytes, or :class:`ClipError`."""
     try:
-        data = read_input_bytes(path, MAX_CLIP_BYTES)  # a regular file: not a pipe or a device
+        return read_input_bytes(path, MAX_CLIP_BYTES)  # a regular file: not a pipe or a device
     except InputRefused as exc:
         raise ClipError(f"cannot read it: {exc}") from None
     except OSError as exc:
         raise ClipError(f"cannot read it: {exc.strerror or exc}") from None
-    text = data.decode("utf-8", errors="replace")
-    return parse_bvh(text, str(path))
 
 
 def parse_bvh(text: str, path: str = "<clip>") -> BvhClip:
@@ -388,10 +392,31 @@ class ClipAnalysis:
     gait: dict[str, float]
     key_joints: list[str]
     leg_length: float  # m, hip to foot at the first frame
+    # ``adapt``'s results by (length ratio, height ratio), kept with the analysis that made them
+    adapted: dict[tuple[float, float], tuple[FloatArray, float]] = field(default_factory=dict)
+
+
+ANALYSES_KEPT = 4  # clips whose analysis a process keeps (``analyse``)
+_ANALYSES: dict[tuple[str, str], ClipAnalysis] = {}
 
 
 def analyse(path: str | Path) -> ClipAnalysis:
-    clip = read_bvh(path)
+    """The clip's analysis, once per process for the same path and bytes: ``compile`` checks
+    the clip before any motion and each walk's pass asks again (0.7 s each for a 6-second
+    clip), and a lint sweep asks once per task and manikin. Nothing downstream changes an
+    analysis (``adapt`` works on a copy of the motion)."""
+    data = _clip_bytes(path)
+    key = (str(path), hashlib.sha256(data).hexdigest())
+    found = _ANALYSES.get(key)
+    if found is None:
+        found = _analysed(parse_bvh(data.decode("utf-8", errors="replace"), str(path)))
+        while len(_ANALYSES) >= ANALYSES_KEPT:
+            del _ANALYSES[next(iter(_ANALYSES))]
+        _ANALYSES[key] = found
+    return found
+
+
+def _analysed(clip: BvhClip) -> ClipAnalysis:
     clip.scale = auto_scale(clip)
     steps = clip_steps(clip)
     if len(steps) < 2:
@@ -533,7 +558,9 @@ def gait_for_walk(ir: MotionIR, ctx: PassContext, seg: Segment, base: Gait) -> G
     key = round(ratio, 3)
     adapted = ctx.cache.setdefault("walk_clip_adapted", {})
     if key not in adapted:
-        motion, err = adapt(an, ratio, 1.0)
+        if (ratio, 1.0) not in an.adapted:  # the analysis keeps it for the process's other tasks
+            an.adapted[(ratio, 1.0)] = adapt(an, ratio, 1.0)
+        motion, err = an.adapted[(ratio, 1.0)]
         steps = clip_steps(an.clip, motion)
         g = gait_of(steps)
         adapted[key] = (g, _foot_rise(an.clip, motion), err, len(steps))

@@ -364,7 +364,7 @@ def hands_on_their_path(
         local0 = _borne(skel, frames.q[rows[0]], start_root, hands, delta, dofs, w)
     else:
         local0 = np.broadcast_to((hands - origin) @ first, (len(w), *hands.shape))
-    rot = quat_to_matrix(frames.root_rotation[rows])  # row by row, the same numbers
+    rot = quat_to_matrix(frames.root_rotation[rows])  # all rows at once: row by row's numbers
     local = local0 + w[:, None, None] * (local1[None] - local0)
     world = np.einsum("nij,nkj->nki", rot, local) + frames.root_position[rows][:, None, :]
     seed = skel.clip(frames.q[rows] + w[:, None] * delta)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -398,6 +399,7 @@ class ClipAnalysis:
 
 ANALYSES_KEPT = 4  # clips whose analysis a process keeps (``analyse``)
 _ANALYSES: dict[tuple[str, str], ClipAnalysis] = {}
+_ANALYSES_LOCK = threading.Lock()  # `serve` compiles from its clients' threads
 
 
 def analyse(path: str | Path) -> ClipAnalysis:
@@ -407,12 +409,13 @@ def analyse(path: str | Path) -> ClipAnalysis:
     analysis (``adapt`` works on a copy of the motion)."""
     data = _clip_bytes(path)
     key = (str(path), hashlib.sha256(data).hexdigest())
-    found = _ANALYSES.get(key)
-    if found is None:
-        found = _analysed(parse_bvh(data.decode("utf-8", errors="replace"), str(path)))
-        while len(_ANALYSES) >= ANALYSES_KEPT:
-            del _ANALYSES[next(iter(_ANALYSES))]
-        _ANALYSES[key] = found
+    with _ANALYSES_LOCK:
+        found = _ANALYSES.get(key)
+        if found is None:
+            found = _analysed(parse_bvh(data.decode("utf-8", errors="replace"), str(path)))
+            while len(_ANALYSES) >= ANALYSES_KEPT:
+                del _ANALYSES[next(iter(_ANALYSES))]
+            _ANALYSES[key] = found
     return found
 
 

@@ -393,8 +393,8 @@ class ClipAnalysis:
     gait: dict[str, float]
     key_joints: list[str]
     leg_length: float  # m, hip to foot at the first frame
-    # ``adapt``'s results by (length ratio, height ratio), kept with the analysis that made them
-    adapted: dict[tuple[float, float], tuple[FloatArray, float]] = field(default_factory=dict)
+    # the gait adapted to a length ratio (``gait_for_walk``), kept for the process's other tasks
+    adapted: dict[float, tuple[dict[str, float], float, float, int]] = field(default_factory=dict)
 
 
 ANALYSES_KEPT = 4  # clips whose analysis a process keeps (``analyse``)
@@ -561,12 +561,11 @@ def gait_for_walk(ir: MotionIR, ctx: PassContext, seg: Segment, base: Gait) -> G
     key = round(ratio, 3)
     adapted = ctx.cache.setdefault("walk_clip_adapted", {})
     if key not in adapted:
-        if (ratio, 1.0) not in an.adapted:  # the analysis keeps it for the process's other tasks
-            an.adapted[(ratio, 1.0)] = adapt(an, ratio, 1.0)
-        motion, err = an.adapted[(ratio, 1.0)]
-        steps = clip_steps(an.clip, motion)
-        g = gait_of(steps)
-        adapted[key] = (g, _foot_rise(an.clip, motion), err, len(steps))
+        if ratio not in an.adapted:
+            motion, err = adapt(an, ratio, 1.0)
+            steps = clip_steps(an.clip, motion)
+            an.adapted[ratio] = (gait_of(steps), _foot_rise(an.clip, motion), err, len(steps))
+        adapted[key] = an.adapted[ratio]
     g, rise, err, n_found = adapted[key]
     seg.result["clip"] = {
         "file": str(path),

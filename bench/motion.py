@@ -640,8 +640,9 @@ def run_job(job: Job, keep: Path | None = None) -> dict[str, Any]:
     (kept in ``keep``/STEM.MANIKIN/ with the diagnostics when given)."""
     from mtlc.cli import main as mtlc_main
 
-    out = Path(tempfile.mkdtemp(prefix="mtlc-motion-"))
-    if keep is not None:
+    if keep is None:
+        out = Path(tempfile.mkdtemp(prefix="mtlc-motion-"))
+    else:
         out = keep / f"{Path(job.path).stem}.{job.manikin}"
         shutil.rmtree(out, ignore_errors=True)
         out.mkdir(parents=True)

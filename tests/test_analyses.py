@@ -397,25 +397,16 @@ def chromium():  # type: ignore[no-untyped-def]
     from preview.preview_support import (
         CHROMEDRIVER,
         CHROMIUM,
-        CHROMIUM_FLAGS,
         CHROMIUM_MISSING,
         SELENIUM_MISSING,
+        headless_chromium,
     )
 
-    webdriver = pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
-    from selenium.webdriver.chrome.service import Service
-
+    pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
     if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
         pytest.skip(CHROMIUM_MISSING)
-    options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)
-    for flag in CHROMIUM_FLAGS:
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
-    try:
+    with headless_chromium() as driver:
         yield driver
-    finally:
-        driver.quit()
 
 
 def test_preview_draws_the_view_cone_from_the_eye(

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -24,12 +23,12 @@ from mtlc.preview.server import MotionHub, PreviewServer
 from .preview_support import (
     CHROMEDRIVER,
     CHROMIUM,
-    CHROMIUM_FLAGS,
     CHROMIUM_MISSING,
     EXAMPLES,
     ROOT,
     SELENIUM_MISSING,
     Example,
+    headless_chromium,
 )
 
 
@@ -65,24 +64,14 @@ def _ensure_chromium() -> str | None:
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
     """A headless Chromium driven by selenium through Debian's chromedriver."""
-    webdriver = pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
-    from selenium.webdriver.chrome.service import Service
+    pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
 
     reason = _ensure_chromium()
     if reason is not None:
         pytest.skip(reason)
-    profile = tempfile.mkdtemp(prefix="mtlc-chromium-")
-    options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)
-    for flag in (*CHROMIUM_FLAGS, f"--user-data-dir={profile}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
-    driver.set_script_timeout(30)
-    try:
+    with headless_chromium() as driver:
+        driver.set_script_timeout(30)
         yield driver
-    finally:
-        driver.quit()
-        shutil.rmtree(profile, ignore_errors=True)
 
 
 @pytest.fixture

@@ -6,6 +6,10 @@ tests/preview is a package (it has an ``__init__.py``) so that its conftest is
 
 from __future__ import annotations
 
+import contextlib
+import shutil
+import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,3 +50,23 @@ class Example:
     ir: MotionIR
     document: dict[str, Any]
     page: Path
+
+
+@contextlib.contextmanager
+def headless_chromium() -> Iterator[Any]:
+    """A selenium driver on a headless Chromium with a profile of its own, removed afterwards
+    (without one, Chromium leaves an ``org.chromium.*`` folder in /tmp per session)."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    profile = tempfile.mkdtemp(prefix="mtlc-chromium-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in (*CHROMIUM_FLAGS, f"--user-data-dir={profile}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+        shutil.rmtree(profile, ignore_errors=True)

@@ -80,6 +80,16 @@ SLOW_MODULES = {
 }  # fmt: skip
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Bytecode for the package before any worker or ``mtlc`` subprocess starts: with
+    PYTHONDONTWRITEBYTECODE set (as on this machine) nothing writes it, and every process the
+    suite starts compiled the package's sources again (0.7 s of each CLI compile's 2.6 s)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        import compileall
+
+        compileall.compile_dir(ROOT / "src" / "mtlc", quiet=2)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The slowest modules first (``SLOW_MODULES``), each module's tests together and in order."""
     tests = Path(__file__).resolve().parent

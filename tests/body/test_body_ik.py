@@ -459,3 +459,41 @@ def test_the_first_attempt_is_what_no_restarts_returns_to_the_bit(
     assert both.first is not None
     assert np.array_equal(both.first, alone.q)
     assert np.array_equal(both.q, best.q)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 12), far=st.floats(0.0, 0.5))
+def test_a_row_of_a_prepared_path_is_solve_ta_of_that_row_to_the_bit(
+    seed: int, rows: int, far: float
+) -> None:
+    """``solve_ta_row`` on a model prepared once for a path's rows (bodies, roots) gives what
+    ``solve_ta`` gives for each row alone, to the bit: the carry's continuation solves an arm at
+    each point of a path this way; targets in and out of reach; a body the row was not
+    prepared for (its trunk moved) is refused."""
+    from mtlc.body.ik import SerialRows, solve_ta_row
+
+    rng = np.random.default_rng(seed)
+    bodies = np.clip(SK.q_comfort + rng.normal(0.0, 0.3, (rows, SK.n_dofs)), SK.lower, SK.upper)
+    roots = rng.normal(0.0, 0.5, (rows, 3))
+    quats = rng.normal(0.0, 1.0, (rows, 4))  # normalised by the kinematics
+    chain = default_dofs(SK, ["r_hand"], "arm")
+    path = SerialRows(
+        prepare(SK, ["r_hand"], bodies, dofs=chain, root_position=roots, root_rotation=quats)
+    )
+    for k in range(rows):
+        start = bodies[k].copy()
+        start[chain] = np.clip(start[chain] + rng.normal(0.0, 0.2, len(chain)),
+                               SK.lower[chain], SK.upper[chain])  # fmt: skip
+        hand = site_positions(SK, forward(SK, start[None], roots[k], quats[k]), "r_hand")[0]
+        target = hand + rng.normal(0.0, 0.1 + far, 3)
+        row = solve_ta_row(path, k, start, target, tol=1e-4, null_gain=0.0)
+        alone = solve_ta(
+            SK, [Goal("r_hand", position=target)], start, dofs=chain, root_position=roots[k],
+            root_rotation=quats[k], restarts=0, null_gain=0.0, tol=1e-4, measure=False,
+        )  # fmt: skip
+        assert row is not None
+        assert np.array_equal(row[0], alone.q[0])
+        assert row[1] == alone.position_error[0]
+    moved = bodies[0].copy()
+    moved[SK.dof_index("lumbar_flex")] += 0.1
+    assert solve_ta_row(path, 0, moved, np.zeros(3), tol=1e-4) is None

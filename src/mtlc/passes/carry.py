@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtlc.body import forward_part, site_positions
-from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.ik import Goal, SerialRows, prepare, solve_ta, solve_ta_row
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import _arm_dofs
@@ -229,8 +229,15 @@ def solve_along(
         hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
         return pose, float(np.linalg.norm(hands[other] - held))
 
+    paths = {hand: _rows_of(skel, frames, hand, chain) for hand, chain in arms.items()}
+
     def solve_hand(k: int, pose: FloatArray, hand: str, target: FloatArray) -> FloatArray:
         chain = arms[hand]
+        rows = paths[hand]
+        fast = None if rows is None else solve_ta_row(
+            rows, k, pose, target, null_gain=0.0, tol=SOLVE_TOL)  # fmt: skip
+        if fast is not None:
+            return fast[0]
         # only the angles are read (``measure=False``): the hands are measured after
         res = solve_ta(
             skel, [Goal(hand, position=target)], pose, dofs=chain,  # type: ignore[arg-type]
@@ -260,6 +267,18 @@ def solve_along(
                     hi = mid
         q[k], error[k], along[k] = pose, err, s
     return q, error, along
+
+
+def _rows_of(skel: object, frames: Frames, hand: str, chain: list[int]) -> SerialRows | None:
+    """``hand``'s arm ``chain`` prepared once for every row of ``frames`` (its poses and
+    roots): ``solve_along``'s solves of that arm, hundreds a path, without a model each;
+    None where the chain is not one serial chain (each solve then prepares its own)."""
+    model = prepare(skel, [hand], frames.q, dofs=chain, root_position=frames.root_position,
+                    root_rotation=frames.root_rotation)  # type: ignore[arg-type]  # fmt: skip
+    try:
+        return SerialRows(model)
+    except ValueError:
+        return None
 
 
 def keep_rigid(

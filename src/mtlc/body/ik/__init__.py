@@ -15,7 +15,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from ..skeleton import Skeleton
-from .dls import prepare, solve_ta
+from .dls import prepare, solve_ta, solve_ta_row
+from .fast import SerialRows
 from .goals import CHAINS, Goal, default_dofs
 from .gradient import solve_to
 from .model import ChainModel
@@ -42,10 +43,12 @@ __all__ = [
     "ChainModel",
     "Goal",
     "IKResult",
+    "SerialRows",
     "default_dofs",
     "prepare",
     "solve",
     "solve_ta",
+    "solve_ta_row",
     "solve_to",
     "solve_transpose",
 ]

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..kinematics import einsum
 from ..skeleton import Skeleton
 from .batch import SerialBatch, solve_serial_batch
-from .fast import NULL_FADE, SerialChain, solve_one
+from .fast import NULL_FADE, SerialChain, SerialRows, solve_one
 from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
 from .result import IKResult, position_targets, residual, returned_errors
@@ -407,6 +407,45 @@ def _solve_single(
         method="dls",
         first=first,
     )
+
+
+# ``solve_ta_row`` takes no restarts: ``solve_one`` never draws from it
+_NO_RESTARTS = np.random.default_rng(0)
+
+
+def solve_ta_row(
+    rows: SerialRows,
+    row: int,
+    q_full: FloatArray,
+    target: FloatArray,
+    *,
+    tol: float,
+    max_iter: int = 60,
+    patience: int = 8,
+    damping: float = 0.02,
+    max_error: float = 0.25,
+    max_step: float = 0.5,
+    null_gain: float = 0.05,
+) -> tuple[FloatArray, float] | None:
+    """``solve_ta(skel, [Goal(site, position=target)], q_full, dofs=..., root_position=...,
+    root_rotation=..., restarts=0, measure=False)`` on row ``row`` of ``rows``' model (prepared
+    once for every row of a path with the same site, dofs and the path's roots and poses), to
+    the bit: the full angles (D,) and the solver's own distance of the site from ``target``.
+    None when that row's model does not describe ``q_full``'s body (the caller asks
+    ``solve_ta``). The keyword defaults are ``solve_ta``'s."""
+    if not rows.describes(row, q_full):
+        return None
+    model = rows.model
+    act, lo, hi = model.active, model.lower, model.upper
+    qb, err, _it, _nr = solve_one(
+        rows.chain(row, q_full), target, np.clip(q_full[act], lo, hi), lo, hi,
+        model.skel.q_comfort[act], tol=tol, max_iter=max_iter, restarts=0, patience=patience,
+        damping=damping, max_error=max_error, max_step=max_step, null_gain=null_gain,
+        rng=_NO_RESTARTS,
+    )  # fmt: skip
+    out = q_full.copy()
+    out[act] = qb
+    return out, err
 
 
 def _blocks(ga: GoalArrays) -> int:

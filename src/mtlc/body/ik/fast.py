@@ -115,25 +115,38 @@ def walk_chain(
     return (c0, c1, c2), (px, py, pz), axes, origins
 
 
-class SerialChain:
-    """Scalar kinematics of a ChainModel with one site on one serial chain (base row 0)."""
+def _serial_base(model: ChainModel) -> int:
+    """The joint a ChainModel's one serial chain hangs from; ValueError when it is not one."""
+    if len(model.sites) != 1:
+        raise ValueError("one site only")
+    skel = model.skel
+    live = model.live
+    for a, b in itertools.pairwise(live):
+        if int(skel.parent[b]) != a:
+            raise ValueError("not a serial chain")
+    if live[-1] != model._site_joint[0]:
+        raise ValueError("site must be on the chain's last joint")
+    return int(skel.parent[live[0]])
 
-    def __init__(self, model: ChainModel) -> None:
-        if len(model.sites) != 1:
-            raise ValueError("one site only")
-        skel = model.skel
-        live = model.live
-        for a, b in itertools.pairwise(live):
-            if int(skel.parent[b]) != a:
-                raise ValueError("not a serial chain")
-        first_parent = int(skel.parent[live[0]])
-        R0 = model._base_R[first_parent][0]
-        p0 = model._base_p[first_parent][0]
+
+class SerialChain:
+    """Scalar kinematics of a ChainModel with one site on one serial chain (base row ``row``,
+    the chain's own fixed angles those of ``q_base``, by default the row's)."""
+
+    def __init__(
+        self,
+        model: ChainModel,
+        row: int = 0,
+        q_base: FloatArray | None = None,
+        *,
+        base: int | None = None,
+    ) -> None:
+        first_parent = _serial_base(model) if base is None else base
+        R0 = model._base_R[first_parent][row]
+        p0 = model._base_p[first_parent][row]
         self.R0 = [[float(R0[i, j]) for i in range(3)] for j in range(3)]  # columns
         self.p0 = [float(x) for x in p0]
-        self.plan = chain_plan(model, live, model.q_base[0])
-        if live[-1] != model._site_joint[0]:
-            raise ValueError("site must be on the chain's last joint")
+        self.plan = chain_plan(model, model.live, model.q_base[row] if q_base is None else q_base)
         self.site_off = [float(x) for x in model._site_off[0]]
         self.n = model.n
 
@@ -151,6 +164,29 @@ class SerialChain:
             dx, dy, dz = ex - qx, ey - qy, ez - qz
             J.append([ay * dz - az * dy, az * dx - ax * dz, ax * dy - ay * dx])
         return [ex, ey, ez], J
+
+
+class SerialRows:
+    """One serial chain on every row of a batched ChainModel: the base frames of all the rows
+    computed together (numpy's arithmetic, row by row the same as a model of that row alone),
+    the chain of a row built without a model of its own (the carry's continuation solves an
+    arm at each of a path's hundreds of points: building a model for each was two thirds of
+    the solve)."""
+
+    def __init__(self, model: ChainModel) -> None:
+        self.model = model
+        self._base = _serial_base(model)
+
+    def describes(self, row: int, q_full: FloatArray) -> bool:
+        """Whether row ``row`` was built for the body of ``q_full`` (D,): the same angles of
+        every dof the chain hangs from (a model places the chain where its own trunk is)."""
+        baked = self.model.baked
+        return bool(np.array_equal(q_full[baked], self.model.q_base[row, baked]))
+
+    def chain(self, row: int, q_full: FloatArray) -> SerialChain:
+        """Row ``row``'s chain, its own fixed angles (dofs of its joints that do not move)
+        those of ``q_full`` (D,)."""
+        return SerialChain(self.model, row, q_full, base=self._base)
 
 
 def _solve3(

@@ -234,7 +234,7 @@ def _values(rule: V.Range) -> st.SearchStrategy[tuple[V.Range, object]]:
     )
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=400, deadline=None)
 @given(case=st.sampled_from(_RULES).flatmap(_values))
 def test_problem_quick_path_says_what_the_reference_says(case: tuple[V.Range, object]) -> None:
     """values.problem answers one in-range number without the general scan (issue 21): the same
@@ -322,7 +322,7 @@ def _expressions() -> st.SearchStrategy[ast.Expr]:
     )
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=400, deadline=None)
 @given(expr=_expressions())
 def test_fold_dispatch_says_what_the_class_patterns_say(expr: ast.Expr) -> None:
     """values._fold dispatches on the node's class (issue 21): the same value, or the same

@@ -216,7 +216,7 @@ def solve_along(
         target = ends_at(s)
         for i, hand in enumerate(arms):
             pose = solve_hand(k, pose, hand, target[i])
-        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        hands = hands_at(k, pose)
         off = np.linalg.norm(hands - target, axis=-1)
         if off.max() <= HOLD_TOL:
             return pose, float(off.max())
@@ -226,10 +226,18 @@ def solve_along(
         other = 1 - lead
         held = hands[lead] + target[other] - target[lead]
         pose = solve_hand(k, pose, list(arms)[other], held)
-        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        hands = hands_at(k, pose)
         return pose, float(np.linalg.norm(hands[other] - held))
 
     paths = {hand: _rows_of(skel, frames, hand, chain) for hand, chain in arms.items()}
+
+    def hands_at(k: int, pose: FloatArray) -> FloatArray:
+        """(2, 3) both hands at row ``k`` with joints ``pose`` (the rows' chains where they
+        describe its body, else ``hand_pair``)."""
+        rows = [paths[h] for h in HANDS]
+        if any(r is None or not r.describes(k, pose) for r in rows):
+            return hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        return np.array([r.site(k, pose) for r in rows])  # type: ignore[union-attr]
 
     def solve_hand(k: int, pose: FloatArray, hand: str, target: FloatArray) -> FloatArray:
         chain = arms[hand]

@@ -188,6 +188,10 @@ class SerialRows:
         those of ``q_full`` (D,)."""
         return SerialChain(self.model, row, q_full, base=self._base)
 
+    def site(self, row: int, q_full: FloatArray) -> list[float]:
+        """The site's position on row ``row`` with the full angles ``q_full`` (D,)."""
+        return self.chain(row, q_full).eval([float(v) for v in q_full[self.model.active]])[0]
+
 
 def _solve3(
     J: list[list[float]], free: list[bool], lam2: float, rhs: list[list[float]]

@@ -494,6 +494,8 @@ def test_a_row_of_a_prepared_path_is_solve_ta_of_that_row_to_the_bit(
         assert row is not None
         assert np.array_equal(row[0], alone.q[0])
         assert row[1] == alone.position_error[0]
+        placed = site_positions(SK, forward(SK, row[0][None], roots[k], quats[k]), "r_hand")[0]
+        assert np.abs(np.asarray(path.site(k, row[0])) - placed).max() < 1e-12
     moved = bodies[0].copy()
     moved[SK.dof_index("lumbar_flex")] += 0.1
     assert solve_ta_row(path, 0, moved, np.zeros(3), tol=1e-4) is None

@@ -499,3 +499,15 @@ def test_a_row_of_a_prepared_path_is_solve_ta_of_that_row_to_the_bit(
     moved = bodies[0].copy()
     moved[SK.dof_index("lumbar_flex")] += 0.1
     assert solve_ta_row(path, 0, moved, np.zeros(3), tol=1e-4) is None
+
+
+def test_a_row_solve_takes_solve_ta_s_defaults() -> None:
+    """``solve_ta_row`` repeats ``solve_ta``'s keyword defaults: they must not drift apart."""
+    import inspect
+
+    from mtlc.body.ik import solve_ta_row
+
+    row = inspect.signature(solve_ta_row).parameters
+    full = inspect.signature(solve_ta).parameters
+    shared = [n for n, p in row.items() if p.default is not inspect.Parameter.empty]
+    assert shared and all(row[n].default == full[n].default for n in shared)

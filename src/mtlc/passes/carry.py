@@ -234,7 +234,7 @@ def solve_along(
     def hands_at(k: int, pose: FloatArray) -> FloatArray:
         """(2, 3) both hands at row ``k`` with joints ``pose`` (the rows' chains where they
         describe its body, else ``hand_pair``)."""
-        rows = [paths[h] for h in HANDS]
+        rows = [paths.get(h) for h in HANDS]
         if any(r is None or not r.describes(k, pose) for r in rows):
             return hand_pair(skel, frames, np.array([k]), pose[None])[0]
         return np.array([r.site(k, pose) for r in rows])  # type: ignore[union-attr]

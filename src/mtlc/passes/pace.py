@@ -565,12 +565,12 @@ def reach_path(
     # is undone (tests/data/arms a02's box squeezed by 83 mm, male P99)
     for sigma in () if held else SMOOTH_SIGMAS:
         wider = _smoothed(ir, m, body, idx, held, sigma)
-        depth, at_wider, _ = approach_depth(ir, m, wider, like=(chosen, pose))
+        depth, at_wider, pose_wider = approach_depth(ir, m, wider, like=(chosen, pose))
         if depth <= allowed:
-            chosen, at = wider, at_wider
+            chosen, at, pose = wider, at_wider, pose_wider
             break
     u2, _ = progress(ir, m, chosen, at)
-    curved = None if held else _curved(ir, m, chosen, at, u2, idx, allowed, models)
+    curved = None if held else _curved(ir, m, chosen, at, u2, idx, allowed, models, pose)
     if curved is not None:
         return curved
     return ReachPath(u2, chosen.q[:, idx])
@@ -612,7 +612,7 @@ def corner_score(at: FloatArray, u: FloatArray) -> float | None:
 
 def _curved(
     ir: MotionIR, m: Movement, chosen: Frames, at: FloatArray, u: FloatArray, idx: list[int],
-    allowed: float, models: ModelCheck | None,
+    allowed: float, models: ModelCheck | None, pose: Pose | None = None,
 ) -> ReachPath | None:  # fmt: skip
     """A reach whose smoothed path still turns a corner at speed (its LDLJ on the minimum-jerk
     clock under ``CURVE_FROM``), made again on a curve: each hand on a cubic Bezier from where
@@ -624,7 +624,9 @@ def _curved(
     straight at its last control point); the best is kept that is solved within ``CURVE_TOL``
     on every point, turns no joint more than ``CURVE_STEP`` between two, goes no deeper behind
     a site, under the ground or into the body (``approach_depth``) nor into the scene's models
-    (``models``), and scores ``CURVE_GAIN`` better; else None (the path stays as it was)."""
+    (``models``), and scores ``CURVE_GAIN`` better; else None (the path stays as it was).
+    ``pose``: ``chosen``'s from ``approach_depth``, if it posed one (a curve moves the arms
+    alone: only the joints below them are posed again)."""
     if not set(m.effectors) <= {"r_hand", "l_hand"}:
         return None
     before = corner_score(at, u)
@@ -646,7 +648,7 @@ def _curved(
         score = bell_ldlj(list(at_curve.transpose(1, 0, 2)), u_curve, LDLJ_POINTS)
         if score < before + CURVE_GAIN or (best is not None and score <= best[0]):
             continue
-        if approach_depth(ir, m, curve)[0] > allowed:
+        if approach_depth(ir, m, curve, like=(chosen, pose))[0] > allowed:
             continue
         # with scene models the path may have been bent round them (``detour``): the curve
         # keeps ``detour.MARGIN`` where the path did, and goes no deeper where it did not

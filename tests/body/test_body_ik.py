@@ -462,21 +462,28 @@ def test_the_first_attempt_is_what_no_restarts_returns_to_the_bit(
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 12), far=st.floats(0.0, 0.5))
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    rows=st.integers(1, 12),
+    far=st.floats(0.0, 0.5),
+    twist=st.booleans(),
+)
 def test_a_row_of_a_prepared_path_is_solve_ta_of_that_row_to_the_bit(
-    seed: int, rows: int, far: float
+    seed: int, rows: int, far: float, twist: bool
 ) -> None:
     """``solve_ta_row`` on a model prepared once for a path's rows (bodies, roots) gives what
     ``solve_ta`` gives for each row alone, to the bit: the carry's continuation solves an arm at
     each point of a path this way; targets in and out of reach; a body the row was not
-    prepared for (its trunk moved) is refused."""
+    prepared for (its trunk moved) is refused. ``twist``: the whole arm chain, else the carry's
+    (the forearm's twist left out: a fixed angle inside the chain)."""
     from mtlc.body.ik import SerialRows, solve_ta_row
 
     rng = np.random.default_rng(seed)
     bodies = np.clip(SK.q_comfort + rng.normal(0.0, 0.3, (rows, SK.n_dofs)), SK.lower, SK.upper)
     roots = rng.normal(0.0, 0.5, (rows, 3))
     quats = rng.normal(0.0, 1.0, (rows, 4))  # normalised by the kinematics
-    chain = default_dofs(SK, ["r_hand"], "arm")
+    chain = [d for d in default_dofs(SK, ["r_hand"], "arm")
+             if twist or "_pro" not in SK.dof_names[d]]  # fmt: skip
     path = SerialRows(
         prepare(SK, ["r_hand"], bodies, dofs=chain, root_position=roots, root_rotation=quats)
     )
@@ -496,9 +503,16 @@ def test_a_row_of_a_prepared_path_is_solve_ta_of_that_row_to_the_bit(
         assert row[1] == alone.position_error[0]
         placed = site_positions(SK, forward(SK, row[0][None], roots[k], quats[k]), "r_hand")[0]
         assert np.abs(np.asarray(path.site(k, row[0])) - placed).max() < 1e-12
-    moved = bodies[0].copy()
-    moved[SK.dof_index("lumbar_flex")] += 0.1
-    assert solve_ta_row(path, 0, moved, np.zeros(3), tol=1e-4) is None
+    k = int(rng.integers(rows))
+    for dof in (
+        "lumbar_flex",
+        "r_clavicle_elev",
+        "thorax_rot",
+        *(() if twist else ("r_elbow_pro",)),
+    ):
+        moved = bodies[k].copy()
+        moved[SK.dof_index(dof)] += 0.1
+        assert solve_ta_row(path, k, moved, np.zeros(3), tol=1e-4) is None
 
 
 def test_a_row_solve_takes_solve_ta_s_defaults() -> None:

@@ -232,8 +232,9 @@ def solve_along(
     paths = {hand: _rows_of(skel, frames, hand, chain) for hand, chain in arms.items()}
 
     def hands_at(k: int, pose: FloatArray) -> FloatArray:
-        """(2, 3) both hands at row ``k`` with joints ``pose`` (the rows' chains where they
-        describe its body, else ``hand_pair``)."""
+        """(2, 3) both hands at row ``k`` with joints ``pose``: on the rows' scalar chains
+        where they describe its body (``hand_pair``'s numbers to rounding, 1e-16 m), else
+        ``hand_pair``."""
         rows = [paths.get(h) for h in HANDS]
         if any(r is None or not r.describes(k, pose) for r in rows):
             return hand_pair(skel, frames, np.array([k]), pose[None])[0]

@@ -693,8 +693,10 @@ def _on_curves(
     ``leaving``, else a third of the way to the last), the ``moving`` dofs solved onto it from
     the path's pose at the same share of the way; its hands' positions and progress. None
     where a point is off by more than ``CURVE_TOL`` or a joint turns more than ``CURVE_STEP``
-    between two. The shapes' points are solved in one batch (each row's solve is its own
-    arithmetic: the same numbers as a solve per shape, a third of the time)."""
+    between two. The shapes' points are solved in one batch, a third of a solve per shape's
+    time: the same numbers to rounding (rows leave the batch as they converge, and the batch's
+    kernel then sums in another order: 1e-15 to 1e-11 rad), the outputs of 100 compiles and the
+    200-action procedure byte-identical to a solve per shape."""
     n = len(chosen.time)
     shapes = list(itertools.product(CURVE_HANDLES, (True, False)))
     targets: list[FloatArray] = []

@@ -432,7 +432,7 @@ def solve_ta_row(
     once for every row of a path with the same site, dofs and the path's roots and poses), to
     the bit: the full angles (D,) and the solver's own distance of the site from ``target``.
     None when that row's model does not describe ``q_full``'s body (the caller asks
-    ``solve_ta``). The keyword defaults are ``solve_ta``'s."""
+    ``solve_ta``). The keyword defaults are ``solve_ta``'s (``tol`` has none here)."""
     if not rows.describes(row, q_full):
         return None
     model = rows.model

@@ -176,6 +176,9 @@ class SerialRows:
     def __init__(self, model: ChainModel) -> None:
         self.model = model
         self._base = _serial_base(model)
+        # every dof about a coordinate axis, or ValueError now (the caller then solves by
+        # ``solve_ta``), not in the middle of a path
+        _plan_shape(model.skel, tuple(model.live), tuple(int(d) for d in model.active))
 
     def describes(self, row: int, q_full: FloatArray) -> bool:
         """Whether row ``row`` was built for the body of ``q_full`` (D,): the same angles of
@@ -189,7 +192,8 @@ class SerialRows:
         return SerialChain(self.model, row, q_full, base=self._base)
 
     def site(self, row: int, q_full: FloatArray) -> list[float]:
-        """The site's position on row ``row`` with the full angles ``q_full`` (D,)."""
+        """The site's position on row ``row`` with the full angles ``q_full`` (D,), on Python
+        floats: forward kinematics' to rounding (1e-16 m), not to the bit."""
         return self.chain(row, q_full).eval([float(v) for v in q_full[self.model.active]])[0]
 
 

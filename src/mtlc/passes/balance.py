@@ -973,6 +973,7 @@ def balance_frames(
     # the root before the corrections, for ``approach_arms`` and ``departing_arms`` only (24
     # bytes a frame)
     root_start = frames.root_position.copy() if approaching else frames.root_position
+    root_in = frames.root_position.copy()  # for ``given_up_where_arms_jump`` (24 bytes a frame)
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -1279,8 +1280,87 @@ def balance_frames(
             held_still = {h: (held_still[h] & ~yielding[h]) | kept[h] for h in held_still}
             timed = arms_in_time(skel, q_start, frames.q, t, held_still)
     frames.q[:] = timed
+    given_up_where_arms_jump(
+        ir, frames, (q_start, root_in), codes, measured, segs, (before, after, failed), static
+    )
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
+
+
+def arm_jumps(
+    skel: Skeleton, q: FloatArray, q_start: FloatArray, t: FloatArray, pinned: BoolArray,
+    hand: str,
+) -> np.ndarray:  # fmt: skip
+    """Frames (indices of the later frame) where ``hand``'s pinned arm turns a dof faster than
+    ``PERSON_JOINT_SPEED`` from the frame before, both pinned, where ``q_start`` did not: a
+    jump between two branches of the arm that balancing made."""
+    cols = np.asarray(arm_dofs(skel, hand), dtype=np.intp)
+    limit = PERSON_JOINT_SPEED * np.diff(t) + 1e-9
+    step = np.abs(np.diff(q[:, cols], axis=0)).max(axis=1)
+    was = np.abs(np.diff(q_start[:, cols], axis=0)).max(axis=1)
+    return np.flatnonzero((step > limit) & (was <= limit) & pinned[1:] & pinned[:-1]) + 1
+
+
+def given_up_where_arms_jump(
+    ir: MotionIR,
+    frames: Frames,
+    start: tuple[FloatArray, FloatArray],
+    codes: dict[str, np.ndarray],
+    measured: Measured,
+    segs: Segments,
+    margins: tuple[FloatArray, FloatArray, BoolArray],
+    static: BoolArray,
+) -> None:
+    """Where a pinned arm still jumps between branches after ``pinned_arms_on_branch`` (its
+    hand held on its site while the trunk's correction moves the shoulder: no pose of the arm
+    follows both), the correction is given up over the hand's whole pinned run, in place:
+    those frames go back to how they came (``start``: q and root; the arm held its site
+    there, on one branch) and their neighbours fade their corrections out toward them no
+    faster than ``fade_shares`` allows, contacts restored. A frame given up that was out of
+    balance is reported (``margins``: before, after, failed, updated). The arm's continuity
+    wins over the trunk's correction: a person does not flip a shoulder 100 deg in a frame
+    to stand straighter (gen_24018 of tests/strategies/procedures.py, pick(both, ...) then
+    stand(): 73-105 deg of shoulder flexion in one frame, issue 19)."""
+    skel, t = ir.skeleton, frames.time
+    q_start, root_start = start
+    bare = np.zeros(len(t), dtype=bool)
+    for hand, code in codes.items():
+        pinned = code != 0
+        jumps = arm_jumps(skel, frames.q, q_start, t, pinned, hand)
+        if jumps.size == 0:
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], pinned.astype(np.int8), [0]])))
+        runs = edges.reshape(-1, 2)  # [first, past the last) of each pinned run
+        for lo, hi in runs[np.any((jumps[:, None] >= runs[:, 0]) & (jumps[:, None] < runs[:, 1]),
+                                  axis=0)]:  # fmt: skip
+            bare[lo:hi] = True
+    if not bare.any():
+        return
+    before, after, failed = margins
+    dq, dr = frames.q - q_start, frames.root_position - root_start
+    share = fade_shares(t, bare, dq, dr, into=True)
+    frames.q[bare], frames.root_position[bare] = q_start[bare], root_start[bare]
+    after[bare] = before[bare]
+    failed[bare] = (before[bare] < 0.0) & static[bare]
+    fade = np.flatnonzero(~bare & (share < 1.0) & ((dq != 0).any(axis=1) | (dr != 0).any(axis=1)))
+    if fade.size == 0:
+        return
+    qs = np.clip(q_start[fade] + share[fade, None] * dq[fade], skel.lower, skel.upper)
+    rs = root_start[fade] + share[fade, None] * dr[fade]
+    m = measured.take(fade)
+    hands = {h: (codes[h][fade], m.hands[:, k]) for k, h in enumerate(HANDS)}
+    qs, rs, ws, ps = restore_contacts_posed(
+        ir, qs, rs, frames.root_rotation[fade], m.feet_goals(), hands, with_axes=False
+    )
+    ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
+    ok &= lowest_point(skel, ps) >= np.minimum(m.lowest - 1e-4, ir.ground - GROUND_SLACK)
+    margin = hull_margin(
+        grouped_hull(m.pts, m.ok), carried_com(ir, ps, t[fade], segs.holding)[:, [0, 2]]
+    )
+    took = fade[ok]
+    frames.q[took], frames.root_position[took] = qs[ok], rs[ok]
+    after[took] = margin[ok]
+    failed[took] = (margin[ok] < ACCEPT_MARGIN) & (before[took] < 0.0) & static[took]
 
 
 def pinned_arms_on_branch(

@@ -1,0 +1,70 @@
+"""Issue 19: balancing does not flip a pinned arm between branches.
+
+Generated procedure 24018 (tests/strategies/procedures.py) picks a part with both hands at
+arm's length and stands up holding it: the hands stay on the part through the stand while the
+balance pass leans the trunk and moves the pelvis. Solved frame by frame for its pinned hand,
+the left arm landed on another branch between two frames, and ``pinned_arms_on_branch``
+followed the old one at 450 deg/s until it could not: 73-105 deg of shoulder flexion in one
+output frame on female P1, female P50 and male P99. Now a pinned arm that still jumps gives up
+the trunk's correction over the hand's pinned run (``given_up_where_arms_jump``), and the frames
+out of balance there are reported (MT0502).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import compile_on
+from strategies.procedures import generate
+
+import mtlc.passes.balance as balance
+from mtlc.passes.balance import PERSON_JOINT_SPEED, arm_jumps
+
+STEP = 12.0  # deg between two output frames at 30 fps (issue 19's goal)
+
+
+@pytest.fixture(scope="module")
+def pick_and_stand(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("gen") / "gen_24018.mtask"
+    path.write_text(generate(24018).text, encoding="utf-8")
+    return path
+
+
+def test_a_pinned_arm_keeps_its_branch_through_the_stand(pick_and_stand: Path) -> None:
+    ir, sink = compile_on(pick_and_stand, ("female", 1))
+    frames, names = ir.frames, ir.skeleton.dof_names
+    assert frames is not None and frames.fps == 30.0
+    steps = np.degrees(np.abs(np.diff(frames.q, axis=0)))
+    arm = [j for j, n in enumerate(names) if n.startswith(("l_shoulder", "l_elbow", "r_shoulder"))]
+    worst = steps[:, arm].max()
+    assert worst <= STEP, f"{worst:.1f} deg in one frame"
+    # the stand is out of balance where the trunk's correction was given up: said, not hidden
+    codes = [d.code for d in sink.items]
+    assert "MT0502" in codes
+
+
+def test_arm_jumps_are_the_pinned_frames_balancing_made_fast(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    class Skel:  # a one-dof "arm" per side
+        dof_names = ("r_shoulder_flex", "l_shoulder_flex")
+
+    t = np.arange(6) / 60.0
+    q_start = np.zeros((6, 2))
+    q = q_start.copy()
+    big = 2.0 * PERSON_JOINT_SPEED / 60.0
+    q[3:, 1] = big  # a jump into frame 3 on the left arm only
+    pinned = np.array([True, True, True, True, False, False])
+    monkeypatch.setattr(balance, "arm_dofs", lambda skel, hand: [1] if hand == "l_hand" else [0])
+    skel: Any = Skel()
+    assert arm_jumps(skel, q, q_start, t, pinned, "l_hand").tolist() == [3]
+    assert arm_jumps(skel, q, q_start, t, pinned, "r_hand").tolist() == []
+    # where the frames came in that fast, balancing did not make it
+    assert arm_jumps(skel, q, q, t, pinned, "l_hand").tolist() == []
+    # nor where the hand is not pinned on both frames
+    off = pinned.copy()
+    off[2] = False
+    assert arm_jumps(skel, q, q_start, t, off, "l_hand").tolist() == []

@@ -87,3 +87,45 @@ def test_the_walk_ends_with_the_arms_where_the_place_starts() -> None:
 
 def test_the_procedures_are_there() -> None:
     assert [p.stem for p in PROCEDURES] == ["c01_shelf_to_bench", "c02_low_to_high"]
+
+
+OUT_OF_REACH = """\
+use stdlib.actions
+use stdlib.elements
+
+scene bay {
+    ground 0 cm
+    site shelf at (0, 235, 55) cm
+    site door at (150, 0, 400) cm
+}
+
+task take_down "a box on a shelf out of reach, then a walk" {
+    manikin gb10000_1988 female p5
+    scene bay
+    pick(both, shelf)
+    walk_to(door)
+    release(both)
+}
+"""
+
+
+def test_hands_that_fell_short_of_their_part_are_not_carried_overhead(tmp_path: Path) -> None:
+    """The hands close in the air 0.7 m short of the shelf (MT0501): they hold nothing, so
+    no width binds them, and the walk takes them down with the trunk upright. Kept to their
+    distance to the millimetre, no carry pose passed and the manikin walked 4.4 s with its
+    hands at 1.6 m and the trunk bent 29 deg (the avionics unit's smaller manikins, issue 19)."""
+    path = tmp_path / "take_down.mtask"
+    path.write_text(OUT_OF_REACH, encoding="utf-8")
+    ir, sink = compile_on(path)
+    assert [d.code for d in sink.items].count("MT0501") == 2  # both hands said to be short
+    assert carries(ir) == []  # no part between the hands
+    fr, skel = ir.frames, ir.skeleton
+    assert fr is not None
+    (walk,) = [(s.start, s.end) for s in ir.on_track("root") if s.kind == "locomotion"]
+    mid = int(np.searchsorted(fr.time, 0.5 * sum(walk)))
+    pose = forward(skel, fr.q[mid : mid + 1], fr.root_position[mid : mid + 1],
+                   fr.root_rotation[mid : mid + 1])  # fmt: skip
+    hands = np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))[0]
+    assert abs(hands.mean(axis=0)[1] - ir.ground - elbow_height(skel)) <= 0.12
+    lean = fr.q[mid, skel.dof_index("lumbar_flex")] + fr.q[mid, skel.dof_index("thorax_flex")]
+    assert abs(np.degrees(lean)) <= 10.0

@@ -101,6 +101,25 @@ def _one_hand_leaves(ir: MotionIR, start: float, end: float) -> float:
     return first
 
 
+def hold_nothing(ir: MotionIR, start: float, end: float) -> bool:
+    """Whether both hands are closed from ``start`` to ``end`` on grips whose contacts fell
+    short of their sites (or had none): the hands hold no part (the avionics unit out of
+    reach of the smaller manikins: they closed in the air, MT0501), so nothing sets how far
+    apart they must stay (``carry_pose``)."""
+    for side in ("r", "l"):
+        spans = [g for g in _grasps(ir, side) if g[0] <= start + EPS and g[1] >= end - EPS]
+        if not spans:
+            return False
+        reach = spans[-1][2]
+        if (
+            reach is not None
+            and reach.goal.site
+            and (float(reach.result.get("distance", np.inf)) <= REACHED)
+        ):
+            return False
+    return True
+
+
 def carries(ir: MotionIR) -> list[Carry]:
     """Every span where both hands hold the same two-handed part (as verify's rigid check),
     until either hand goes somewhere on its own."""

@@ -63,7 +63,7 @@ from mtlc.geometry.distance import MeshIndex
 from mtlc.geometry.held import _hand_frames as hand_frames
 from mtlc.geometry.held import _placements
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
-from mtlc.passes.carry import Carry, carries
+from mtlc.passes.carry import Carry, carries, hold_nothing
 from mtlc.passes.context import PassContext
 from mtlc.passes.detour import WORDS, capsule_depths, grasped_parts
 from mtlc.passes.hold import ARM_HAND, _arm_dofs, carried_postures, closed_at, on_site
@@ -160,7 +160,8 @@ def carry_walk(
     """Lead the arms to the carry pose and back over one walk's frames, in place, the trunk
     upright while they are there (``trunk_offset``) where that passes, else as it was
     (``meshes``: the CAD parts the hands hold; ``rigid``: one two-handed part, which the carry
-    pass holds rigid after this; else the hands must keep their distance). Whether it did
+    pass holds rigid after this, or none (``carry.hold_nothing``); else the hands must keep
+    their distance). Whether it did
     (not: too short, already near, or no carry pose within ``TRIES`` that the arms reach and
     keep clear of the body on the way)."""
     t = frames.time
@@ -741,6 +742,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         # both hands closed: one part, or two kept as they are to each other (a hatch held by
         # its two edges is not a two-handed part: carried apart, the arms would squeeze it)
         rigid = any(c.start <= a + EPS and c.end >= b - EPS for c in spans)
+        # hands closed where they fell short of a part hold nothing: no distance to keep
+        # between them (the avionics unit out of the smaller manikins' reach was carried at
+        # 1.65 m, the trunk bent 28-50 deg, because two hands apart must keep theirs to 1 mm)
+        rigid |= hold_nothing(ir, a, b)
         alone = tracks and not any(c.start < b - EPS and c.end > a + EPS for c in spans)
         if not (rigid or alone):
             continue

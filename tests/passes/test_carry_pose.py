@@ -129,3 +129,30 @@ def test_hands_that_fell_short_of_their_part_are_not_carried_overhead(tmp_path: 
     assert abs(hands.mean(axis=0)[1] - ir.ground - elbow_height(skel)) <= 0.12
     lean = fr.q[mid, skel.dof_index("lumbar_flex")] + fr.q[mid, skel.dof_index("thorax_flex")]
     assert abs(np.degrees(lean)) <= 10.0
+
+
+def test_a_part_brought_to_the_carry_pose_over_a_stand_no_faster_than_a_person(
+    tmp_path: Path,
+) -> None:
+    """Generated procedure 24002 picks a part off the floor with the right hand and stands
+    up: over the 1.2 s stand the arm went to the carry pose at up to 516 deg/s (17 deg of
+    shoulder flexion in one output frame, female P1). The arm now keeps to ``PATH_SPEED``
+    (the straight way refused where faster, the angles' ramp run on past the stand) and the
+    part is still carried at forearm height on the walks after it."""
+    from strategies.procedures import generate
+
+    path = tmp_path / "gen_24002.mtask"
+    path.write_text(generate(24002).text, encoding="utf-8")
+    ir, _ = compile_on(path, ("female", 1))
+    fr, skel = ir.frames, ir.skeleton
+    assert fr is not None and fr.fps == 30.0
+    (stand,) = [s for s in ir.on_track("root") if s.goal.params.get("posture") == "stand"]
+    rows = np.flatnonzero((fr.time >= stand.start - 0.2) & (fr.time <= stand.end + 0.5))
+    arm = [skel.dof_index(n) for n in skel.dof_names if n.startswith(("r_shoulder", "r_elbow"))]
+    steps = np.degrees(np.abs(np.diff(fr.q[rows][:, arm], axis=0)))
+    assert steps.max() <= 12.0
+    walks = [s for s in ir.on_track("root") if s.kind == "locomotion"]
+    mid = np.searchsorted(fr.time, [0.5 * (w.start + w.end) for w in walks])
+    pose = forward(skel, fr.q[mid], fr.root_position[mid], fr.root_rotation[mid])
+    hand = np.asarray(site_positions(skel, pose, "r_hand"))
+    assert (hand[:, 1] - ir.ground <= elbow_height(skel) + 0.15).all()

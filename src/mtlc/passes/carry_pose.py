@@ -566,6 +566,16 @@ def carry_posture(
         after = penetrations(skel, moved, root, sides)
         return all((after[s] <= np.maximum(before[s], deep)).all() for s in sides)
 
+    def in_time(moved: FloatArray) -> bool:
+        """No arm joint faster than ``PATH_SPEED`` over the posture, from the frame before it
+        (the pose is held after it): a box picked off the floor, brought to the carry pose
+        over a 1.2 s stand, swung the shoulder 516 deg/s (generated procedure 24002, female
+        P1: 17 deg in an output frame)."""
+        lo = max(int(rows[0]) - 1, 0)
+        q = np.vstack([frames.q[lo, dofs], moved[:, dofs]])
+        dt = np.maximum(np.diff(np.r_[t[lo], t[rows]]), EPS)
+        return float((np.abs(np.diff(q, axis=0)) / dt[:, None]).max(initial=0.0)) <= PATH_SPEED
+
     span = (posture.start, posture.end)
     w = shoulders_rise(skel, frames, rows)
     seed = frames.q[rows].copy()
@@ -578,7 +588,7 @@ def carry_posture(
         """The hands on straight lines to the carry point ``k`` tries higher and further out."""
         lifted = targets + k * (RAISE * np.array([0.0, 1.0, 0.0]) + AWAY * ahead)
         moved = _hands_straight(skel, frames, rows, w, skel.clip(seed), tracks, lifted)
-        if moved is None or not clear(moved, 0.0):
+        if moved is None or not clear(moved, 0.0) or not in_time(moved):
             return False
         frames.q[rows[:-1]] = moved[:-1]
         at = float(t[last])  # the posture's last frame, on or just before its end
@@ -591,11 +601,14 @@ def carry_posture(
         if end is None:
             return False
         change = end[dofs] - frames.q[last, dofs]
-        rise = (span[0] + late * (span[1] - span[0]), span[1])
+        a = span[0] + late * (span[1] - span[0])
+        # no faster than ``FAST_ARM_SPEED`` at the ramp's peak: past the posture's end if
+        # it is short (the arm goes on into what follows, ``keep_until_keyed``)
+        rise = (a, max(span[1], a + PEAK * float(np.abs(change).max()) / FAST_ARM_SPEED))
         ramp = minimum_jerk(np.clip((t[rows] - rise[0]) / (rise[1] - rise[0]), 0.0, 1.0))
         moved = frames.q[rows].copy()
         moved[:, dofs] += ramp[:, None] * change[None]
-        if not clear(moved, 0.0):
+        if not clear(moved, 0.0) or not in_time(moved):
             return False
         keep_until_keyed(skel, ir, frames, dofs, change, rise)
         return True

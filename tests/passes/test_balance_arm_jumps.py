@@ -1,4 +1,5 @@
-"""Issue 19: balancing does not flip a pinned arm between branches.
+"""Issue 19: balancing makes no jump: a pinned arm does not flip between branches, and a
+dip in the corrections is faded into, not stepped over.
 
 Generated procedure 24018 (tests/strategies/procedures.py) picks a part with both hands at
 arm's length and stands up holding it: the hands stay on the part through the stand while the
@@ -68,3 +69,32 @@ def test_arm_jumps_are_the_pinned_frames_balancing_made_fast(
     off = pinned.copy()
     off[2] = False
     assert arm_jumps(skel, q, q_start, t, off, "l_hand").tolist() == []
+
+
+def test_a_dip_in_the_corrections_is_given_up_not_jumped(tmp_path: Path) -> None:
+    """Generated procedure 24004 kneels, then squats: three frames where the knee leaves the
+    ground took no correction between frames whose hips the balance pass bent 45 deg more
+    (43.8 deg of hip flexion in one output frame, female P1). The dip's neighbours now fade
+    their corrections out toward it (``jumped_corrections``)."""
+    path = tmp_path / "gen_24004.mtask"
+    path.write_text(generate(24004).text, encoding="utf-8")
+    ir, _ = compile_on(path, ("female", 1))
+    frames = ir.frames
+    assert frames is not None and frames.fps == 30.0
+    steps = np.degrees(np.abs(np.diff(frames.q, axis=0)))
+    legs = [j for j, n in enumerate(ir.skeleton.dof_names) if "hip" in n or "knee" in n]
+    assert steps[:, legs].max() <= STEP
+
+
+def test_jumped_corrections_take_the_smaller_side_and_its_dip() -> None:
+    t = np.arange(12) / 60.0
+    q_start = np.zeros((12, 1))
+    dq = np.full((12, 1), 0.8)  # rad: a correction far above two frames' worth of a turn
+    dq[5:8] = 0.0  # a dip of three frames that took none
+    mask = balance.jumped_corrections(q_start + dq, q_start, t, dq)
+    assert np.flatnonzero(mask).tolist() == [5, 6, 7]
+    # a quick turn within twice a person's speed is no jump
+    slow = np.cumsum(np.full((12, 1), 1.5 * PERSON_JOINT_SPEED / 60.0), axis=0)
+    assert not balance.jumped_corrections(slow, q_start, t, slow).any()
+    # nor one the frames came in with
+    assert not balance.jumped_corrections(q_start + dq, q_start + dq, t, dq).any()

@@ -115,6 +115,7 @@ FADE_JOINT_SPEED = math.radians(120.0)
 # rad/s: an approach's arm kept on its planned path faster than this (issue 19's limit) yields
 # over its TA (``too_fast``): kept there up to it, a yield costs the reach its smoothness
 PERSON_JOINT_SPEED = math.radians(360.0)
+DIP_SPAN = 0.5  # s each way: the most of a dip in the corrections ``jumped_corrections`` gives up
 CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
@@ -1301,6 +1302,42 @@ def arm_jumps(
     return np.flatnonzero((step > limit) & (was <= limit) & pinned[1:] & pinned[:-1]) + 1
 
 
+def jumped_corrections(
+    q: FloatArray, q_start: FloatArray, t: FloatArray, dq: FloatArray
+) -> BoolArray:
+    """(N,) the frames whose correction to give up where any dof turns more than twice as
+    fast as ``PERSON_JOINT_SPEED`` between two frames that came in no faster than it
+    (``q_start``): a jump, not a quick turn. Of the two frames, the one with the smaller
+    correction (``dq``, its largest joint), with the run of frames around it (``DIP_SPAN``
+    each way at most) corrected no more than it. Frames that could take no correction
+    between frames that took their own kept their neighbours' whole: a kneel's three frames
+    where the knee left the ground leaned 45 deg less at the hips than those either side
+    (generated procedure 24004, female P1: 43.8 deg of hip flexion in one output frame,
+    issue 19). Any quick turn (at once the limit) gave up the corrections of a whole kneeling
+    reach (tests/data/reach/r03, male P1: its LDLJ -7.6 -> -8.7)."""
+    n = len(t)
+    out = np.zeros(n, dtype=bool)
+    if n < 2:
+        return out
+    limit = PERSON_JOINT_SPEED * np.diff(t)[:, None] + 1e-9
+    jump = 2.0 * limit
+    fast = (np.abs(np.diff(q, axis=0)) > jump) & (np.abs(np.diff(q_start, axis=0)) <= limit)
+    jumps = np.flatnonzero(fast.any(axis=1)) + 1
+    if jumps.size == 0:
+        return out
+    size = np.abs(dq).max(axis=1)
+    for i in jumps:
+        k = i - 1 if size[i - 1] < size[i] else i
+        low = (size <= size[k] + 1e-9) & (np.abs(t - t[k]) <= DIP_SPAN)
+        lo, hi = k, k + 1
+        while lo > 0 and low[lo - 1]:
+            lo -= 1
+        while hi < n and low[hi]:
+            hi += 1
+        out[lo:hi] = True
+    return out
+
+
 def given_up_where_arms_jump(
     ir: MotionIR,
     frames: Frames,
@@ -1334,10 +1371,11 @@ def given_up_where_arms_jump(
         for lo, hi in runs[np.any((jumps[:, None] >= runs[:, 0]) & (jumps[:, None] < runs[:, 1]),
                                   axis=0)]:  # fmt: skip
             bare[lo:hi] = True
+    dq, dr = frames.q - q_start, frames.root_position - root_start
+    bare |= jumped_corrections(frames.q, q_start, t, dq)
     if not bare.any():
         return
     before, after, failed = margins
-    dq, dr = frames.q - q_start, frames.root_position - root_start
     share = fade_shares(t, bare, dq, dr, into=True)
     frames.q[bare], frames.root_position[bare] = q_start[bare], root_start[bare]
     after[bare] = before[bare]

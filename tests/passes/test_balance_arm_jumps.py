@@ -7,7 +7,7 @@ balance pass leans the trunk and moves the pelvis. Solved frame by frame for its
 the left arm landed on another branch between two frames, and ``pinned_arms_on_branch``
 followed the old one at 450 deg/s until it could not: 73-105 deg of shoulder flexion in one
 output frame on female P1, female P50 and male P99. Now a pinned arm that still jumps gives up
-the trunk's correction over the hand's pinned run (``given_up_where_arms_jump``), and the frames
+the trunk's correction over the hand's pinned run (``given_up_where_frames_jump``), and the frames
 out of balance there are reported (MT0502).
 """
 

@@ -974,7 +974,7 @@ def balance_frames(
     # the root before the corrections, for ``approach_arms`` and ``departing_arms`` only (24
     # bytes a frame)
     root_start = frames.root_position.copy() if approaching else frames.root_position
-    root_in = frames.root_position.copy()  # for ``given_up_where_arms_jump`` (24 bytes a frame)
+    root_in = frames.root_position.copy()  # for ``given_up_where_frames_jump`` (24 bytes a frame)
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -1281,7 +1281,7 @@ def balance_frames(
             held_still = {h: (held_still[h] & ~yielding[h]) | kept[h] for h in held_still}
             timed = arms_in_time(skel, q_start, frames.q, t, held_still)
     frames.q[:] = timed
-    given_up_where_arms_jump(
+    given_up_where_frames_jump(
         ir, frames, (q_start, root_in), codes, measured, segs, (before, after, failed), static
     )
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
@@ -1313,8 +1313,8 @@ def jumped_corrections(
     between frames that took their own kept their neighbours' whole: a kneel's three frames
     where the knee left the ground leaned 45 deg less at the hips than those either side
     (generated procedure 24004, female P1: 43.8 deg of hip flexion in one output frame,
-    issue 19). Any quick turn (at once the limit) gave up the corrections of a whole kneeling
-    reach (tests/data/reach/r03, male P1: its LDLJ -7.6 -> -8.7)."""
+    issue 19). Judged at the person's speed itself, a quick 7 deg turn gave up the
+    corrections of a whole kneeling reach (tests/data/reach/r03, male P1: LDLJ -7.6 -> -8.7)."""
     n = len(t)
     out = np.zeros(n, dtype=bool)
     if n < 2:
@@ -1338,7 +1338,7 @@ def jumped_corrections(
     return out
 
 
-def given_up_where_arms_jump(
+def given_up_where_frames_jump(
     ir: MotionIR,
     frames: Frames,
     start: tuple[FloatArray, FloatArray],
@@ -1348,16 +1348,18 @@ def given_up_where_arms_jump(
     margins: tuple[FloatArray, FloatArray, BoolArray],
     static: BoolArray,
 ) -> None:
-    """Where a pinned arm still jumps between branches after ``pinned_arms_on_branch`` (its
-    hand held on its site while the trunk's correction moves the shoulder: no pose of the arm
-    follows both), the correction is given up over the hand's whole pinned run, in place:
-    those frames go back to how they came (``start``: q and root; the arm held its site
-    there, on one branch) and their neighbours fade their corrections out toward them no
-    faster than ``fade_shares`` allows, contacts restored. A frame given up that was out of
-    balance is reported (``margins``: before, after, failed, updated). The arm's continuity
-    wins over the trunk's correction: a person does not flip a shoulder 100 deg in a frame
-    to stand straighter (gen_24018 of tests/strategies/procedures.py, pick(both, ...) then
-    stand(): 73-105 deg of shoulder flexion in one frame, issue 19)."""
+    """Where the corrected frames still jump, the correction is given up there, in place:
+    over a hand's whole pinned run where its arm jumps between branches after
+    ``pinned_arms_on_branch`` (``arm_jumps``: the hand held on its site while the trunk's
+    correction moves the shoulder, no pose of the arm follows both), and over a dip in the
+    corrections elsewhere (``jumped_corrections``). Those frames go back to how they came
+    (``start``: q and root; a pinned arm held its site there, on one branch) and their
+    neighbours fade their corrections out toward them no faster than ``fade_shares`` allows,
+    contacts restored. A frame given up that was out of balance is reported (``margins``:
+    before, after, failed, updated). Continuity wins over the correction: a person does not
+    flip a shoulder 100 deg in a frame to stand straighter (gen_24018 of
+    tests/strategies/procedures.py, pick(both, ...) then stand(): 73-105 deg of shoulder
+    flexion in one frame, issue 19)."""
     skel, t = ir.skeleton, frames.time
     q_start, root_start = start
     bare = np.zeros(len(t), dtype=bool)

@@ -8,7 +8,8 @@ the left arm landed on another branch between two frames, and ``pinned_arms_on_b
 followed the old one at 450 deg/s until it could not: 73-105 deg of shoulder flexion in one
 output frame on female P1, female P50 and male P99. Now a pinned arm that still jumps gives up
 the trunk's correction over the hand's pinned run (``given_up_where_frames_jump``), and the frames
-out of balance there are reported (MT0502).
+out of balance there are reported (MT0502, as they were before: the stand was out of balance
+with the correction too).
 """
 
 from __future__ import annotations
@@ -35,16 +36,12 @@ def pick_and_stand(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_a_pinned_arm_keeps_its_branch_through_the_stand(pick_and_stand: Path) -> None:
-    ir, sink = compile_on(pick_and_stand, ("female", 1))
+    ir, _ = compile_on(pick_and_stand, ("female", 1))
     frames, names = ir.frames, ir.skeleton.dof_names
     assert frames is not None and frames.fps == 30.0
     steps = np.degrees(np.abs(np.diff(frames.q, axis=0)))
-    arm = [j for j, n in enumerate(names) if n.startswith(("l_shoulder", "l_elbow", "r_shoulder"))]
-    worst = steps[:, arm].max()
-    assert worst <= STEP, f"{worst:.1f} deg in one frame"
-    # the stand is out of balance where the trunk's correction was given up: said, not hidden
-    codes = [d.code for d in sink.items]
-    assert "MT0502" in codes
+    worst = steps.max()
+    assert worst <= STEP, f"{worst:.1f} deg of {names[int(np.argmax(steps.max(axis=0)))]}"
 
 
 def test_arm_jumps_are_the_pinned_frames_balancing_made_fast(
@@ -56,8 +53,7 @@ def test_arm_jumps_are_the_pinned_frames_balancing_made_fast(
     t = np.arange(6) / 60.0
     q_start = np.zeros((6, 2))
     q = q_start.copy()
-    big = 2.0 * PERSON_JOINT_SPEED / 60.0
-    q[3:, 1] = big  # a jump into frame 3 on the left arm only
+    q[3:, 1] = 3.0 * PERSON_JOINT_SPEED / 60.0  # a jump into frame 3 on the left arm only
     pinned = np.array([True, True, True, True, False, False])
     monkeypatch.setattr(balance, "arm_dofs", lambda skel, hand: [1] if hand == "l_hand" else [0])
     skel: Any = Skel()
@@ -65,6 +61,10 @@ def test_arm_jumps_are_the_pinned_frames_balancing_made_fast(
     assert arm_jumps(skel, q, q_start, t, pinned, "r_hand").tolist() == []
     # where the frames came in that fast, balancing did not make it
     assert arm_jumps(skel, q, q, t, pinned, "l_hand").tolist() == []
+    # a quick turn, at 1.5 times a person's speed, is no jump
+    quick = q_start.copy()
+    quick[3:, 1] = 1.5 * PERSON_JOINT_SPEED / 60.0
+    assert arm_jumps(skel, quick, q_start, t, pinned, "l_hand").tolist() == []
     # nor where the hand is not pinned on both frames
     off = pinned.copy()
     off[2] = False
@@ -91,10 +91,19 @@ def test_jumped_corrections_take_the_smaller_side_and_its_dip() -> None:
     q_start = np.zeros((12, 1))
     dq = np.full((12, 1), 0.8)  # rad: a correction far above two frames' worth of a turn
     dq[5:8] = 0.0  # a dip of three frames that took none
-    mask = balance.jumped_corrections(q_start + dq, q_start, t, dq)
+    dr = np.zeros((12, 3))
+    mask = balance.jumped_corrections(q_start + dq, q_start, t, dq, dr)
     assert np.flatnonzero(mask).tolist() == [5, 6, 7]
     # a quick turn within twice a person's speed is no jump
     slow = np.cumsum(np.full((12, 1), 1.5 * PERSON_JOINT_SPEED / 60.0), axis=0)
-    assert not balance.jumped_corrections(slow, q_start, t, slow).any()
+    assert not balance.jumped_corrections(slow, q_start, t, slow, dr).any()
     # nor one the frames came in with
-    assert not balance.jumped_corrections(q_start + dq, q_start + dq, t, dq).any()
+    assert not balance.jumped_corrections(q_start + dq, q_start + dq, t, dq, dr).any()
+    # a jump between two corrections alike (a sign flip) is no dip: nothing is given up
+    flip = dq.copy()
+    flip[5:] = -0.8
+    assert not balance.jumped_corrections(q_start + flip, q_start, t, flip, dr).any()
+    # a pelvis shift counts as a correction: a frame shifted 10 cm is no dip beside 0.8 rad
+    shifted = dr.copy()
+    shifted[5:8, 0] = 0.1
+    assert not balance.jumped_corrections(q_start + dq, q_start, t, dq, shifted).any()

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import compile_on
+from strategies.procedures import generate
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import MotionIR
@@ -139,8 +140,6 @@ def test_a_part_brought_to_the_carry_pose_over_a_stand_no_faster_than_a_person(
     shoulder flexion in one output frame, female P1). The arm now keeps to ``PATH_SPEED``
     (the straight way refused where faster, the angles' ramp run on past the stand) and the
     part is still carried at forearm height on the walks after it."""
-    from strategies.procedures import generate
-
     path = tmp_path / "gen_24002.mtask"
     path.write_text(generate(24002).text, encoding="utf-8")
     ir, _ = compile_on(path, ("female", 1))
@@ -155,4 +154,7 @@ def test_a_part_brought_to_the_carry_pose_over_a_stand_no_faster_than_a_person(
     mid = np.searchsorted(fr.time, [0.5 * (w.start + w.end) for w in walks])
     pose = forward(skel, fr.q[mid], fr.root_position[mid], fr.root_rotation[mid])
     hand = np.asarray(site_positions(skel, pose, "r_hand"))
-    assert (hand[:, 1] - ir.ground <= elbow_height(skel) + 0.15).all()
+    height = hand[:, 1] - ir.ground
+    # at forearm height: not left hanging, not lifted (the ways refused, the arm kept its
+    # pick's angles and the part rose above the head on the walks, 1.7 m)
+    assert (abs(height - elbow_height(skel)) <= 0.2).all(), height

@@ -116,6 +116,7 @@ FADE_JOINT_SPEED = math.radians(120.0)
 # over its TA (``too_fast``): kept there up to it, a yield costs the reach its smoothness
 PERSON_JOINT_SPEED = math.radians(360.0)
 DIP_SPAN = 0.5  # s each way: the most of a dip in the corrections ``jumped_corrections`` gives up
+FADE_TRIES = 3  # fades toward frames given up, each giving up the frames whose fade lost contacts
 CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
@@ -1292,29 +1293,31 @@ def arm_jumps(
     skel: Skeleton, q: FloatArray, q_start: FloatArray, t: FloatArray, pinned: BoolArray,
     hand: str,
 ) -> np.ndarray:  # fmt: skip
-    """Frames (indices of the later frame) where ``hand``'s pinned arm turns a dof faster than
-    ``PERSON_JOINT_SPEED`` from the frame before, both pinned, where ``q_start`` did not: a
-    jump between two branches of the arm that balancing made."""
+    """Frames (indices of the later frame) where ``hand``'s pinned arm turns a dof more than
+    twice as fast as ``PERSON_JOINT_SPEED`` from the frame before, both pinned, where that dof
+    came in (``q_start``) no faster than it: a jump between two branches of the arm that
+    balancing made, not a quick turn (each such jump gives up a whole pinned run)."""
     cols = np.asarray(arm_dofs(skel, hand), dtype=np.intp)
-    limit = PERSON_JOINT_SPEED * np.diff(t) + 1e-9
-    step = np.abs(np.diff(q[:, cols], axis=0)).max(axis=1)
-    was = np.abs(np.diff(q_start[:, cols], axis=0)).max(axis=1)
-    return np.flatnonzero((step > limit) & (was <= limit) & pinned[1:] & pinned[:-1]) + 1
+    limit = PERSON_JOINT_SPEED * np.diff(t)[:, None] + 1e-9
+    fast = np.abs(np.diff(q[:, cols], axis=0)) > 2.0 * limit
+    fast &= np.abs(np.diff(q_start[:, cols], axis=0)) <= limit
+    return np.flatnonzero(fast.any(axis=1) & pinned[1:] & pinned[:-1]) + 1
 
 
 def jumped_corrections(
-    q: FloatArray, q_start: FloatArray, t: FloatArray, dq: FloatArray
+    q: FloatArray, q_start: FloatArray, t: FloatArray, dq: FloatArray, dr: FloatArray
 ) -> BoolArray:
     """(N,) the frames whose correction to give up where any dof turns more than twice as
     fast as ``PERSON_JOINT_SPEED`` between two frames that came in no faster than it
-    (``q_start``): a jump, not a quick turn. Of the two frames, the one with the smaller
-    correction (``dq``, its largest joint), with the run of frames around it (``DIP_SPAN``
-    each way at most) corrected no more than it. Frames that could take no correction
-    between frames that took their own kept their neighbours' whole: a kneel's three frames
-    where the knee left the ground leaned 45 deg less at the hips than those either side
-    (generated procedure 24004, female P1: 43.8 deg of hip flexion in one output frame,
-    issue 19). Judged at the person's speed itself, a quick 7 deg turn gave up the
-    corrections of a whole kneeling reach (tests/data/reach/r03, male P1: LDLJ -7.6 -> -8.7)."""
+    (``q_start``), where one of the two frames is a dip: corrected (``dq``, ``dr``: the
+    pass's measure of a correction, its largest joint plus ten times the pelvis's shift) at
+    most half as much as the other. The dip's frame is given up with the run of frames
+    around it (``DIP_SPAN`` each way at most) corrected no more than it; a jump between two
+    corrections alike is left to the smoothing. A kneel's three frames where the knee left
+    the ground took none between frames whose hips were bent 45 deg (generated procedure
+    24004, female P1: 43.8 deg of hip flexion in one output frame, issue 19). Judged at the
+    person's speed itself, a quick 7 deg turn gave up the corrections of a whole kneeling
+    reach (tests/data/reach/r03, male P1: LDLJ -7.6 -> -8.7)."""
     n = len(t)
     out = np.zeros(n, dtype=bool)
     if n < 2:
@@ -1325,9 +1328,11 @@ def jumped_corrections(
     jumps = np.flatnonzero(fast.any(axis=1)) + 1
     if jumps.size == 0:
         return out
-    size = np.abs(dq).max(axis=1)
+    size = np.abs(dq).max(axis=1) + 10.0 * np.linalg.norm(dr, axis=1)
     for i in jumps:
-        k = i - 1 if size[i - 1] < size[i] else i
+        k, other = (i - 1, i) if size[i - 1] < size[i] else (i, i - 1)
+        if size[k] > 0.5 * size[other]:
+            continue
         low = (size <= size[k] + 1e-9) & (np.abs(t - t[k]) <= DIP_SPAN)
         lo, hi = k, k + 1
         while lo > 0 and low[lo - 1]:
@@ -1374,33 +1379,43 @@ def given_up_where_frames_jump(
                                   axis=0)]:  # fmt: skip
             bare[lo:hi] = True
     dq, dr = frames.q - q_start, frames.root_position - root_start
-    bare |= jumped_corrections(frames.q, q_start, t, dq)
+    bare |= jumped_corrections(frames.q, q_start, t, dq, dr)
     if not bare.any():
         return
     before, after, failed = margins
-    share = fade_shares(t, bare, dq, dr, into=True)
+    corrected = (dq != 0).any(axis=1) | (dr != 0).any(axis=1)
+    for attempt in range(FADE_TRIES):
+        # a frame whose fade loses its contacts is given up too, and the fade starts again
+        # from there (on the last try, it is given up alone): kept whole, it stepped its
+        # correction next to the frames given up
+        share = fade_shares(t, bare, dq, dr, into=True)
+        fade = np.flatnonzero(~bare & (share < 1.0) & corrected)
+        if fade.size == 0:
+            break
+        qs = np.clip(q_start[fade] + share[fade, None] * dq[fade], skel.lower, skel.upper)
+        rs = root_start[fade] + share[fade, None] * dr[fade]
+        m = measured.take(fade)
+        hands = {h: (codes[h][fade], m.hands[:, k]) for k, h in enumerate(HANDS)}
+        qs, rs, ws, ps = restore_contacts_posed(
+            ir, qs, rs, frames.root_rotation[fade], m.feet_goals(), hands, with_axes=False
+        )
+        ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
+        ok &= lowest_point(skel, ps) >= np.minimum(m.lowest - 1e-4, ir.ground - GROUND_SLACK)
+        bare[fade[~ok]] = True
+        if not ok.all() and attempt < FADE_TRIES - 1:
+            continue
+        margin = hull_margin(
+            grouped_hull(m.pts, m.ok), carried_com(ir, ps, t[fade], segs.holding)[:, [0, 2]]
+        )
+        took = fade[ok]
+        frames.q[took], frames.root_position[took] = qs[ok], rs[ok]
+        after[took] = margin[ok]
+        # a faded frame outside its support is reported, whether or not it came in so
+        failed[took] = (margin[ok] < ACCEPT_MARGIN) & static[took]
+        break
     frames.q[bare], frames.root_position[bare] = q_start[bare], root_start[bare]
     after[bare] = before[bare]
     failed[bare] = (before[bare] < 0.0) & static[bare]
-    fade = np.flatnonzero(~bare & (share < 1.0) & ((dq != 0).any(axis=1) | (dr != 0).any(axis=1)))
-    if fade.size == 0:
-        return
-    qs = np.clip(q_start[fade] + share[fade, None] * dq[fade], skel.lower, skel.upper)
-    rs = root_start[fade] + share[fade, None] * dr[fade]
-    m = measured.take(fade)
-    hands = {h: (codes[h][fade], m.hands[:, k]) for k, h in enumerate(HANDS)}
-    qs, rs, ws, ps = restore_contacts_posed(
-        ir, qs, rs, frames.root_rotation[fade], m.feet_goals(), hands, with_axes=False
-    )
-    ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
-    ok &= lowest_point(skel, ps) >= np.minimum(m.lowest - 1e-4, ir.ground - GROUND_SLACK)
-    margin = hull_margin(
-        grouped_hull(m.pts, m.ok), carried_com(ir, ps, t[fade], segs.holding)[:, [0, 2]]
-    )
-    took = fade[ok]
-    frames.q[took], frames.root_position[took] = qs[ok], rs[ok]
-    after[took] = margin[ok]
-    failed[took] = (margin[ok] < ACCEPT_MARGIN) & (before[took] < 0.0) & static[took]
 
 
 def pinned_arms_on_branch(

@@ -566,15 +566,19 @@ def carry_posture(
         after = penetrations(skel, moved, root, sides)
         return all((after[s] <= np.maximum(before[s], deep)).all() for s in sides)
 
+    lo = max(int(rows[0]) - 1, 0)
+    dt = np.maximum(np.diff(np.r_[t[lo], t[rows]]), EPS)[:, None]
+    # the arms' own speed over the posture, as the frames came: the most a way may add up to
+    came = np.abs(np.diff(np.vstack([frames.q[lo, dofs], frames.q[rows][:, dofs]]), axis=0)) / dt
+
     def in_time(moved: FloatArray) -> bool:
-        """No arm joint faster than ``PATH_SPEED`` over the posture, from the frame before it
-        (the pose is held after it): a box picked off the floor, brought to the carry pose
-        over a 1.2 s stand, swung the shoulder 516 deg/s (generated procedure 24002, female
-        P1: 17 deg in an output frame)."""
-        lo = max(int(rows[0]) - 1, 0)
+        """No arm joint faster than ``PATH_SPEED`` (or than it came in) over the posture, from
+        the frame before it (the pose is held after it): a box picked off the floor, brought
+        to the carry pose over a 1.2 s stand, swung the shoulder 516 deg/s (generated
+        procedure 24002, female P1: 17 deg in an output frame)."""
         q = np.vstack([frames.q[lo, dofs], moved[:, dofs]])
-        dt = np.maximum(np.diff(np.r_[t[lo], t[rows]]), EPS)
-        return float((np.abs(np.diff(q, axis=0)) / dt[:, None]).max(initial=0.0)) <= PATH_SPEED
+        speed = np.abs(np.diff(q, axis=0)) / dt
+        return bool((speed <= np.maximum(came, PATH_SPEED)).all())
 
     span = (posture.start, posture.end)
     w = shoulders_rise(skel, frames, rows)
@@ -610,6 +614,11 @@ def carry_posture(
         moved[:, dofs] += ramp[:, None] * change[None]
         if not clear(moved, 0.0) or not in_time(moved):
             return False
+        if rise[1] > span[1] + EPS:  # the pose itself, which the ramp reaches after the posture
+            held = frames.q[rows].copy()
+            held[:, dofs] += change[None]
+            if not clear(held, 0.0):
+                return False
         keep_until_keyed(skel, ir, frames, dofs, change, rise)
         return True
 

@@ -91,19 +91,23 @@ def test_jumped_corrections_take_the_smaller_side_and_its_dip() -> None:
     q_start = np.zeros((12, 1))
     dq = np.full((12, 1), 0.8)  # rad: a correction far above two frames' worth of a turn
     dq[5:8] = 0.0  # a dip of three frames that took none
-    dr = np.zeros((12, 3))
-    mask = balance.jumped_corrections(q_start + dq, q_start, t, dq, dr)
+    size = np.abs(dq).max(axis=1)
+    mask = balance.jumped_corrections(q_start + dq, q_start, t, size)
     assert np.flatnonzero(mask).tolist() == [5, 6, 7]
     # a quick turn within twice a person's speed is no jump
     slow = np.cumsum(np.full((12, 1), 1.5 * PERSON_JOINT_SPEED / 60.0), axis=0)
-    assert not balance.jumped_corrections(slow, q_start, t, slow, dr).any()
+    assert not balance.jumped_corrections(slow, q_start, t, slow[:, 0]).any()
     # nor one the frames came in with
-    assert not balance.jumped_corrections(q_start + dq, q_start + dq, t, dq, dr).any()
+    assert not balance.jumped_corrections(q_start + dq, q_start + dq, t, size).any()
     # a jump between two corrections alike (a sign flip) is no dip: nothing is given up
     flip = dq.copy()
     flip[5:] = -0.8
-    assert not balance.jumped_corrections(q_start + flip, q_start, t, flip, dr).any()
-    # a pelvis shift counts as a correction: a frame shifted 10 cm is no dip beside 0.8 rad
-    shifted = dr.copy()
+    assert not balance.jumped_corrections(q_start + flip, q_start, t, np.abs(flip[:, 0])).any()
+    # a pelvis shift counts as a correction (the pass's measure): a frame shifted 10 cm is
+    # no dip beside 0.8 rad
+    root, shifted = np.zeros((12, 3)), np.zeros((12, 3))
     shifted[5:8, 0] = 0.1
-    assert not balance.jumped_corrections(q_start + dq, q_start, t, dq, shifted).any()
+    joints, pelvis = balance._sizes(q_start + dq, q_start, shifted, root)
+    assert pelvis[5:8].tolist() == [0.1, 0.1, 0.1]
+    size = joints + 10.0 * pelvis
+    assert not balance.jumped_corrections(q_start + dq, q_start, t, size).any()

@@ -975,7 +975,6 @@ def balance_frames(
     # the root before the corrections, for ``approach_arms`` and ``departing_arms`` only (24
     # bytes a frame)
     root_start = frames.root_position.copy() if approaching else frames.root_position
-    root_in = frames.root_position.copy()  # for ``given_up_where_frames_jump`` (24 bytes a frame)
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -1241,6 +1240,9 @@ def balance_frames(
     applied = np.concatenate(
         [qb[fine] - frames.q[apply], rb[fine] - frames.root_position[apply]], axis=1
     )
+    # the root as it came, for ``given_up_where_frames_jump``: copied here, past the pass's
+    # peak of memory (held from the start, its 24 bytes a frame were on top of that peak)
+    root_in = root_start if approaching else frames.root_position.copy()
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
     failed[apply] |= (mb[fine] < ACCEPT_MARGIN) & (before[apply] < 0.0) & static[apply]
@@ -1298,18 +1300,34 @@ def arm_jumps(
     came in (``q_start``) no faster than it: a jump between two branches of the arm that
     balancing made, not a quick turn (each such jump gives up a whole pinned run)."""
     cols = np.asarray(arm_dofs(skel, hand), dtype=np.intp)
-    limit = PERSON_JOINT_SPEED * np.diff(t)[:, None] + 1e-9
-    fast = np.abs(np.diff(q[:, cols], axis=0)) > 2.0 * limit
-    fast &= np.abs(np.diff(q_start[:, cols], axis=0)) <= limit
-    return np.flatnonzero(fast.any(axis=1) & pinned[1:] & pinned[:-1]) + 1
+    fast = _jumps_between(q, q_start, t, cols)
+    return np.flatnonzero(fast & pinned[1:] & pinned[:-1]) + 1
+
+
+def _jumps_between(
+    q: FloatArray, q_start: FloatArray, t: FloatArray, cols: np.ndarray | slice
+) -> BoolArray:
+    """(N - 1,) whether a dof of ``cols`` steps more than twice ``PERSON_JOINT_SPEED`` from
+    each frame to the next in ``q`` where it came in (``q_start``) no faster than the speed
+    itself; ``CHUNK_FRAMES`` at a time (the differences of every dof of every frame were a
+    third of a kilobyte a frame at the pass's peak)."""
+    n = len(t)
+    out = np.zeros(max(n - 1, 0), dtype=bool)
+    for a in range(0, n - 1, CHUNK_FRAMES):
+        b = min(a + CHUNK_FRAMES + 1, n)
+        limit = PERSON_JOINT_SPEED * np.diff(t[a:b])[:, None] + 1e-9
+        fast = np.abs(np.diff(q[a:b, cols], axis=0)) > 2.0 * limit
+        fast &= np.abs(np.diff(q_start[a:b, cols], axis=0)) <= limit
+        out[a : b - 1] = fast.any(axis=1)
+    return out
 
 
 def jumped_corrections(
-    q: FloatArray, q_start: FloatArray, t: FloatArray, dq: FloatArray, dr: FloatArray
+    q: FloatArray, q_start: FloatArray, t: FloatArray, size: FloatArray
 ) -> BoolArray:
     """(N,) the frames whose correction to give up where any dof turns more than twice as
     fast as ``PERSON_JOINT_SPEED`` between two frames that came in no faster than it
-    (``q_start``), where one of the two frames is a dip: corrected (``dq``, ``dr``: the
+    (``q_start``), where one of the two frames is a dip: corrected (``size``, ``_sizes``: the
     pass's measure of a correction, its largest joint plus ten times the pelvis's shift) at
     most half as much as the other. The dip's frame is given up with the run of frames
     around it (``DIP_SPAN`` each way at most) corrected no more than it; a jump between two
@@ -1322,13 +1340,7 @@ def jumped_corrections(
     out = np.zeros(n, dtype=bool)
     if n < 2:
         return out
-    limit = PERSON_JOINT_SPEED * np.diff(t)[:, None] + 1e-9
-    jump = 2.0 * limit
-    fast = (np.abs(np.diff(q, axis=0)) > jump) & (np.abs(np.diff(q_start, axis=0)) <= limit)
-    jumps = np.flatnonzero(fast.any(axis=1)) + 1
-    if jumps.size == 0:
-        return out
-    size = np.abs(dq).max(axis=1) + 10.0 * np.linalg.norm(dr, axis=1)
+    jumps = np.flatnonzero(_jumps_between(q, q_start, t, slice(None))) + 1
     for i in jumps:
         k, other = (i - 1, i) if size[i - 1] < size[i] else (i, i - 1)
         if size[k] > 0.5 * size[other]:
@@ -1378,22 +1390,26 @@ def given_up_where_frames_jump(
         for lo, hi in runs[np.any((jumps[:, None] >= runs[:, 0]) & (jumps[:, None] < runs[:, 1]),
                                   axis=0)]:  # fmt: skip
             bare[lo:hi] = True
-    dq, dr = frames.q - q_start, frames.root_position - root_start
-    bare |= jumped_corrections(frames.q, q_start, t, dq, dr)
+    joints, pelvis = _sizes(frames.q, q_start, frames.root_position, root_start)
+    bare |= jumped_corrections(frames.q, q_start, t, joints + 10.0 * pelvis)
     if not bare.any():
         return
     before, after, failed = margins
-    corrected = (dq != 0).any(axis=1) | (dr != 0).any(axis=1)
+    corrected = (joints > 0.0) | (pelvis > 0.0)
+    # ``fade_shares`` reads a correction's largest joint and the pelvis's shift alone
+    sizes = (joints[:, None], np.stack([pelvis, np.zeros_like(pelvis)], axis=1))
     for attempt in range(FADE_TRIES):
         # a frame whose fade loses its contacts is given up too, and the fade starts again
         # from there (on the last try, it is given up alone): kept whole, it stepped its
         # correction next to the frames given up
-        share = fade_shares(t, bare, dq, dr, into=True)
+        share = fade_shares(t, bare, *sizes, into=True)
         fade = np.flatnonzero(~bare & (share < 1.0) & corrected)
         if fade.size == 0:
             break
-        qs = np.clip(q_start[fade] + share[fade, None] * dq[fade], skel.lower, skel.upper)
-        rs = root_start[fade] + share[fade, None] * dr[fade]
+        dq = frames.q[fade] - q_start[fade]
+        dr = frames.root_position[fade] - root_start[fade]
+        qs = np.clip(q_start[fade] + share[fade, None] * dq, skel.lower, skel.upper)
+        rs = root_start[fade] + share[fade, None] * dr
         m = measured.take(fade)
         hands = {h: (codes[h][fade], m.hands[:, k]) for k, h in enumerate(HANDS)}
         qs, rs, ws, ps = restore_contacts_posed(
@@ -1416,6 +1432,20 @@ def given_up_where_frames_jump(
     frames.q[bare], frames.root_position[bare] = q_start[bare], root_start[bare]
     after[bare] = before[bare]
     failed[bare] = (before[bare] < 0.0) & static[bare]
+
+
+def _sizes(
+    q: FloatArray, q_start: FloatArray, root: FloatArray, root_start: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """(N,) each frame's correction: its largest joint's (rad) and the pelvis's shift (m),
+    ``CHUNK_FRAMES`` at a time."""
+    n = len(q)
+    joints, pelvis = np.empty(n), np.empty(n)
+    for a in range(0, n, CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        joints[c] = np.abs(q[c] - q_start[c]).max(axis=1, initial=0.0)
+        pelvis[c] = np.linalg.norm(root[c] - root_start[c], axis=1)
+    return joints, pelvis
 
 
 def pinned_arms_on_branch(

@@ -53,7 +53,7 @@ from mtlc.body import (
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.ik.fast import SerialChain, solve_one
 from mtlc.body.kinematics import quat_to_matrix, repeated_rows, rotate_about
-from mtlc.ir.model import Frames, MotionIR, Segment
+from mtlc.ir.model import Frames, MotionIR, Segment, runs_of
 from mtlc.loads import Held, carried_com, held
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
@@ -1385,24 +1385,21 @@ def given_up_where_frames_jump(
         jumps = arm_jumps(skel, frames.q, q_start, t, pinned, hand)
         if jumps.size == 0:
             continue
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], pinned.astype(np.int8), [0]])))
-        runs = edges.reshape(-1, 2)  # [first, past the last) of each pinned run
-        for lo, hi in runs[np.any((jumps[:, None] >= runs[:, 0]) & (jumps[:, None] < runs[:, 1]),
-                                  axis=0)]:  # fmt: skip
-            bare[lo:hi] = True
+        for lo, hi in runs_of(pinned):
+            if ((jumps >= lo) & (jumps < hi)).any():
+                bare[lo:hi] = True
     joints, pelvis = _sizes(frames.q, q_start, frames.root_position, root_start)
     bare |= jumped_corrections(frames.q, q_start, t, joints + 10.0 * pelvis)
     if not bare.any():
         return
     before, after, failed = margins
     corrected = (joints > 0.0) | (pelvis > 0.0)
-    # ``fade_shares`` reads a correction's largest joint and the pelvis's shift alone
-    sizes = (joints[:, None], np.stack([pelvis, np.zeros_like(pelvis)], axis=1))
+    fading = fade_times(joints, pelvis)
     for attempt in range(FADE_TRIES):
         # a frame whose fade loses its contacts is given up too, and the fade starts again
         # from there (on the last try, it is given up alone): kept whole, it stepped its
         # correction next to the frames given up
-        share = fade_shares(t, bare, *sizes, into=True)
+        share = shares_faded(t, bare, fading, into=True)
         fade = np.flatnonzero(~bare & (share < 1.0) & corrected)
         if fade.size == 0:
             break
@@ -1763,6 +1760,19 @@ def fade_shares(
     (pelvis, ``dr``), whichever takes longer; 0 with no kept frame. ``into``: the other way,
     ``kept`` are the frames that take none, and each other frame's own correction fades to
     nothing at the nearest of them (1 with none)."""
+    return shares_faded(
+        t, kept, fade_times(np.abs(dq).max(axis=1), np.linalg.norm(dr, axis=1)), into
+    )
+
+
+def fade_times(joints: FloatArray, pelvis: FloatArray) -> FloatArray:
+    """(N,) s each frame's correction takes to fade: its largest joint's (rad) at
+    ``FADE_JOINT_SPEED`` or its pelvis shift (m) at ``CORRECTED_ROOT_SPEED``, the longer."""
+    return np.maximum(joints / FADE_JOINT_SPEED, pelvis / CORRECTED_ROOT_SPEED)
+
+
+def shares_faded(t: FloatArray, kept: BoolArray, size: FloatArray, into: bool) -> FloatArray:
+    """``fade_shares`` of corrections that take ``size`` (N,) s to fade (``fade_times``)."""
     if into:
         if not kept.any():
             return np.ones(len(t))
@@ -1772,17 +1782,9 @@ def fade_shares(
             np.abs(t - t[idx[np.clip(k - 1, 0, idx.size - 1)]]),
             np.abs(t[idx[np.clip(k, 0, idx.size - 1)]] - t),
         )
-        own = np.maximum(
-            np.abs(dq).max(axis=1) / FADE_JOINT_SPEED,
-            np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
-        )
-        return np.clip(gap / np.maximum(own, 1e-9), 0.0, 1.0)
+        return np.clip(gap / np.maximum(size, 1e-9), 0.0, 1.0)
     if not kept.any():
         return np.zeros(len(t))
-    size = np.maximum(
-        np.abs(dq).max(axis=1) / FADE_JOINT_SPEED,
-        np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
-    )  # s each frame's correction takes to fade
     idx = np.flatnonzero(kept)
     k = np.searchsorted(idx, np.arange(len(t)))
     share = np.zeros(len(t))

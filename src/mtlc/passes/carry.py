@@ -77,10 +77,18 @@ def _grasps(ir: MotionIR, side: str) -> list[tuple[float, float, Segment | None]
 
 def _holds_part(reach: Segment | None) -> str:
     """The two-handed part a contact closes on ("" when none, or the hand fell short of it)."""
-    if reach is None or not reach.goal.params.get("two_handed") or not reach.goal.site:
+    if reach is None or not reach.goal.params.get("two_handed"):
         return ""
-    reached = float(reach.result.get("distance", np.inf)) <= REACHED
-    return reach.goal.site if reached else ""
+    return reach.goal.site if _on_its_site(reach) else ""
+
+
+def _on_its_site(reach: Segment | None) -> bool:
+    """Whether a contact put its hand on a site (within ``REACHED``)."""
+    return (
+        reach is not None
+        and bool(reach.goal.site)
+        and float(reach.result.get("distance", np.inf)) <= REACHED
+    )
 
 
 def _one_hand_leaves(ir: MotionIR, start: float, end: float) -> float:
@@ -110,12 +118,7 @@ def hold_nothing(ir: MotionIR, start: float, end: float) -> bool:
         spans = [g for g in _grasps(ir, side) if g[0] <= start + EPS and g[1] >= end - EPS]
         if not spans:
             return False
-        reach = spans[-1][2]
-        if (
-            reach is not None
-            and reach.goal.site
-            and (float(reach.result.get("distance", np.inf)) <= REACHED)
-        ):
+        if _on_its_site(spans[-1][2]):
             return False
     return True
 
